@@ -1,0 +1,38 @@
+# Every target works from a fresh clone with only Python 3.11 and pip:
+# the first one that needs it creates .venv and installs the project.
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed-stamp
+
+.PHONY: run test lint bench schema clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+## run: the daemon on its embedded defaults, with a simulated visitor, decisions printed
+run: $(STAMP)
+	$(BIN)/dms run --visitor demo
+
+## test: the whole suite (unit, integration, scenarios)
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+## lint: ruff and mypy
+lint: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+	$(BIN)/mypy dms managers activities motivation memory agenda sim
+
+## bench: every benchmark, JSON on stdout
+bench: $(STAMP)
+	@for b in bench/bench_*.py; do $(BIN)/python $$b; done
+
+schema: $(STAMP)
+	$(BIN)/dms schema docs/schema
+
+clean:
+	rm -rf $(VENV) build *.egg-info

@@ -1,0 +1,113 @@
+"""The ``dms`` console script: one typer app with a sub-app per package.
+
+``main`` runs it so that every failure a person can cause (a bad flag, a bad file,
+a database that cannot be opened) ends as one ``dms: ...`` line on stderr and a
+non-zero exit, never a traceback.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import click
+import typer
+
+from activities.cli import app as behavior_app
+from agenda.cli import app as agenda_app
+from dms.errors import DmsError
+from dms.rules.cli import app as rules_app
+from memory.cli import app as users_app
+from memory.cli import db_app
+from motivation.cli import app as motivation_app
+from sim.cli import app as sim_app
+from sim.cli import record_command
+
+app = typer.Typer(
+    name="dms",
+    help="A biologically inspired decision daemon for social robots like Mini.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    add_completion=False,
+)
+app.add_typer(rules_app, name="rules", help="Check and evaluate DMSL rule files.")
+app.add_typer(users_app, name="users", help="List, show, export and erase user profiles.")
+app.add_typer(db_app, name="db", help="Database schema migrations.")
+app.add_typer(agenda_app, name="agenda", help="Per-user events and reminders.")
+app.add_typer(motivation_app, name="motivation", help="The motivational model.")
+app.add_typer(behavior_app, name="behavior", help="Behavior files: check, draw, step, run.")
+app.add_typer(sim_app, name="sim", help="Simulated sessions, studies and long-term runs.")
+app.command("record")(record_command)
+
+
+@app.command()
+def schema(
+    directory: Annotated[Path, typer.Argument(help="Where to write the JSON Schemas.")],
+) -> None:
+    """Write a JSON Schema for every public message into DIRECTORY."""
+    from dms.messages import write_schemas
+
+    for path in write_schemas(directory):
+        typer.echo(str(path))
+
+
+@app.command()
+def run(
+    config: Annotated[Path | None, typer.Option(help="TOML configuration file.")] = None,
+    robot_id: Annotated[str | None, typer.Option("--robot-id", help="Robot id.")] = None,
+    db: Annotated[str | None, typer.Option(help="SQLAlchemy database URL.")] = None,
+    listen: Annotated[list[str] | None, typer.Option(help="Zenoh endpoint to listen on.")] = None,
+    connect: Annotated[list[str] | None, typer.Option(help="Zenoh endpoint to connect to.")] = None,
+    zenoh_config: Annotated[
+        Path | None, typer.Option("--zenoh-config", help="Zenoh JSON5 configuration file.")
+    ] = None,
+    robot: Annotated[str | None, typer.Option(help="sim (in-process) or zenoh.")] = None,
+    seed: Annotated[int | None, typer.Option(help="Seed of the random generator.")] = None,
+    visitor: Annotated[
+        str | None, typer.Option(help="Run a simulated visitor (a persona name) beside it.")
+    ] = None,
+    quiet: Annotated[bool, typer.Option(help="Do not print decisions.")] = False,
+) -> None:
+    """Run the daemon until SIGINT or SIGTERM."""
+    from dms.config import load_config
+    from dms.daemon import run_daemon
+
+    settings = load_config(
+        config,
+        robot_id=robot_id,
+        db=db,
+        listen=listen,
+        connect=connect,
+        zenoh_config=zenoh_config,
+        robot=robot,
+        seed=seed,
+    )
+    raise typer.Exit(run_daemon(settings, visitor=visitor, print_decisions=not quiet))
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the console script; returns the exit code."""
+    try:
+        app(args=argv, standalone_mode=False)
+    except click.exceptions.Exit as done:
+        return int(done.exit_code or 0)
+    except click.exceptions.Abort:
+        print("dms: aborted", file=sys.stderr)
+        return 130
+    except click.exceptions.ClickException as error:
+        print(f"dms: {error.format_message()}", file=sys.stderr)
+        return error.exit_code or 2
+    except DmsError as error:
+        print(f"dms: {error}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        return 130
+    except OSError as error:
+        print(f"dms: {error}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

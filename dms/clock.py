@@ -1,0 +1,145 @@
+"""Clocks: the one place that reads time.
+
+The daemon's entry point builds a :class:`RealClock`; tests and simulation build a
+:class:`VirtualClock` and advance it. Everything below the entry point receives
+``now`` (a timezone-aware UTC ``datetime``) from the clock instead of reading the
+system time, so the same code runs live and on a virtual timeline.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from datetime import UTC, datetime, timedelta
+from typing import Protocol
+
+TICK_PERIOD_S = 0.5
+"""The decision loop's period: 2 Hz, as in the paper."""
+
+
+class Clock(Protocol):
+    """What the daemon needs to know about time."""
+
+    def now(self) -> datetime:
+        """The current wall time, timezone-aware UTC."""
+        ...
+
+    def monotonic(self) -> float:
+        """Seconds on a clock that never goes back; for deadlines and durations."""
+        ...
+
+
+class RealClock:
+    """The system clock. Only the daemon's entry point should create one."""
+
+    def now(self) -> datetime:
+        return datetime.now(UTC)
+
+    def monotonic(self) -> float:
+        return time.monotonic()
+
+
+class VirtualClock:
+    """A clock that moves only when told to; for tests and simulation."""
+
+    def __init__(self, start: datetime | None = None) -> None:
+        start = start or datetime(2026, 11, 23, 9, 0, tzinfo=UTC)
+        if start.tzinfo is None:
+            raise ValueError("VirtualClock needs a timezone-aware start time")
+        self._start = start.astimezone(UTC)
+        self._elapsed = 0.0
+
+    def now(self) -> datetime:
+        return self._start + timedelta(seconds=self._elapsed)
+
+    def monotonic(self) -> float:
+        return self._elapsed
+
+    def advance(self, seconds: float) -> datetime:
+        """Move time forward by ``seconds`` (never back) and return the new now."""
+        if seconds < 0:
+            raise ValueError("a virtual clock never goes back")
+        self._elapsed += seconds
+        return self.now()
+
+    def set(self, when: datetime) -> None:
+        """Jump forward to ``when``."""
+        delta = (when - self._start).total_seconds()
+        if delta < self._elapsed:
+            raise ValueError("a virtual clock never goes back")
+        self._elapsed = delta
+
+
+@dataclass(frozen=True, slots=True)
+class TickTiming:
+    """When a tick was due and when it actually started (monotonic seconds)."""
+
+    index: int
+    due: float
+    started: float
+
+    @property
+    def lateness(self) -> float:
+        return self.started - self.due
+
+
+class Ticker:
+    """Yields ticks at a fixed period against monotonic deadlines, so it never drifts.
+
+    The next deadline is always ``previous deadline + period``; the time spent doing
+    the work is not added on top. A tick that falls more than one period behind is
+    skipped rather than bunched, and counted in :attr:`missed`.
+
+    :meth:`wake` lets another thread (an urgent input) end the current wait early;
+    the woken iteration yields the same deadline again with ``urgent=True``.
+    """
+
+    def __init__(self, clock: Clock, period: float = TICK_PERIOD_S) -> None:
+        self._clock = clock
+        self._period = period
+        self._wakeup = threading.Event()
+        self._stopped = threading.Event()
+        self.missed = 0
+
+    def wake(self) -> None:
+        """Ask the loop to run now (an urgent input arrived)."""
+        self._wakeup.set()
+
+    def stop(self) -> None:
+        self._stopped.set()
+        self._wakeup.set()
+
+    @property
+    def stopped(self) -> bool:
+        return self._stopped.is_set()
+
+    def __iter__(self) -> Iterator[tuple[TickTiming | None, bool]]:
+        """Yield ``(timing, urgent)``: timing for a periodic tick, None for an urgent wake."""
+        deadline = self._clock.monotonic()
+        index = 0
+        while not self._stopped.is_set():
+            remaining = deadline - self._clock.monotonic()
+            if remaining > 0:
+                woke = self._wakeup.wait(remaining)
+                if self._stopped.is_set():
+                    return
+                if woke:
+                    self._wakeup.clear()
+                    yield None, True
+                    continue
+            started = self._clock.monotonic()
+            behind = int((started - deadline) // self._period)
+            if behind >= 1:
+                self.missed += behind
+                deadline += behind * self._period
+            yield TickTiming(index, deadline, started), False
+            index += 1
+            deadline += self._period
+
+
+def iso(t: datetime) -> str:
+    """ISO-8601 UTC with milliseconds and a trailing Z, as CONTRACT.md asks."""
+    t = t.astimezone(UTC)
+    return t.strftime("%Y-%m-%dT%H:%M:%S.") + f"{t.microsecond // 1000:03d}Z"

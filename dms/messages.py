@@ -1,0 +1,257 @@
+"""The public messages of CONTRACT.md as pydantic v2 models.
+
+Inbound models validate what other processes publish: unknown fields are ignored,
+wrong types, out-of-range values and missing required fields raise
+``pydantic.ValidationError``. Outbound models are what the daemon publishes.
+``dms schema DIR`` writes a JSON Schema for each (see :data:`SCHEMAS`).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, StringConstraints, field_validator
+
+from dms.activity_names import ACTIVITIES
+
+ROBOT_ID_PATTERN = r"^[a-z0-9_-]+$"
+
+Unit = Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)]
+ShortText = Annotated[str, StringConstraints(max_length=4096)]
+Identifier = Annotated[str, StringConstraints(min_length=1, max_length=128)]
+ParamName = Annotated[str, StringConstraints(pattern=r"^[A-Za-z_][A-Za-z0-9_]{0,63}$")]
+ParamValue = Annotated[str, StringConstraints(max_length=1024)] | bool | int | float
+
+
+class Inbound(BaseModel):
+    """A message another process publishes to the daemon."""
+
+    model_config = ConfigDict(extra="ignore", strict=True, frozen=True)
+
+
+class Outbound(BaseModel):
+    """A message the daemon publishes."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+# ---------------------------------------------------------------- inbound
+
+
+class UserPerception(Inbound):
+    """``perception/user``: who is in front of the robot."""
+
+    present: bool
+    user_id: Identifier | None = None
+    ready: bool = False
+    engagement: Unit | None = None
+
+
+class Touch(Inbound):
+    """``perception/touch``: one touch event."""
+
+    part: Literal["right_shoulder", "left_shoulder", "head", "belly"]
+    kind: Literal["tap", "caress", "hit"]
+
+
+class Speech(Inbound):
+    """``perception/speech``: one recognized utterance."""
+
+    text: ShortText
+    confidence: Unit
+
+
+class ScreenChoice(Inbound):
+    """``perception/screen``: one option tapped on the touch screen."""
+
+    choice: Annotated[str, StringConstraints(min_length=1, max_length=256)]
+
+
+class ProfileParams(Inbound):
+    """``params/robot`` and ``params/env``: named values, merged into the profile."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, frozen=True)
+    values: dict[ParamName, ParamValue] = Field(max_length=256)
+
+    @classmethod
+    def from_payload(cls, payload: Any) -> ProfileParams:
+        return cls.model_validate({"values": payload})
+
+    @field_validator("values")
+    @classmethod
+    def _finite(cls, values: dict[str, Any]) -> dict[str, Any]:
+        for name, value in values.items():
+            if isinstance(value, float) and value != value or value in (float("inf"), float("-inf")):
+                raise ValueError(f"{name} is not a finite number")
+        return values
+
+
+RequestAction = Literal["start", "cancel", "pause", "resume", "reload_rules"]
+
+
+class Request(Inbound):
+    """``request``: a request from another program (a caregiver's app, a test)."""
+
+    action: RequestAction
+    activity: str | None = None
+    by: Annotated[str, StringConstraints(max_length=128)] | None = None
+
+    @field_validator("activity")
+    @classmethod
+    def _known_activity(cls, activity: str | None) -> str | None:
+        if activity is not None and activity not in ACTIVITIES:
+            raise ValueError(f"unknown activity {activity!r}")
+        return activity
+
+
+FeedbackStatus = Literal["started", "done", "interrupted", "failed"]
+
+
+class RobotFeedback(Inbound):
+    """``robot/feedback``: an external robot reporting on a command."""
+
+    id: Identifier
+    status: FeedbackStatus
+    detail: ShortText | None = None
+
+
+# ---------------------------------------------------------------- outbound
+
+Channel = Literal["speech", "screen", "led", "motion", "media"]
+
+
+class RobotCommand(Outbound):
+    """``robot/command``: one expression command."""
+
+    id: str
+    channel: Channel
+    action: str
+    args: dict[str, Any] = Field(default_factory=dict)
+
+
+class ErrorReport(Outbound):
+    """``dms/errors``: one rejected input or runtime problem."""
+
+    key: str
+    error: str
+    time: str
+
+
+class UserState(Outbound):
+    id: str
+    ready: bool
+
+
+class ActivityState(Outbound):
+    name: str
+    manager: str
+    status: Literal["running", "paused"]
+    state: str
+
+
+class MotivationSnapshot(Outbound):
+    dominant: str | None
+    drives: dict[str, float]
+    motivations: dict[str, float]
+    wellbeing: float
+
+
+InputStatus = Literal["ok", "stale", "missing"]
+Mode = Literal["motivation", "autonomous", "user_choice", "hybrid"]
+
+
+class DmsState(Outbound):
+    """``dms/state``: the daemon's state, every tick and after every decision."""
+
+    robot: str
+    tick: int
+    time: str
+    mode: Mode
+    user: UserState | None
+    activity: ActivityState | None
+    suspended: ActivityState | None
+    motivation: MotivationSnapshot
+    inputs: dict[str, InputStatus]
+
+
+DecisionAction = Literal["start", "pause", "resume", "cancel", "complete", "fail", "ask"]
+Reason = Literal[
+    "motivation",
+    "motivation_changed",
+    "user_request",
+    "user_choice",
+    "preference",
+    "agenda",
+    "activity_error",
+    "activity_redirect",
+    "completed",
+    "confirm_cancel",
+    "user_left",
+    "input_missing",
+    "notification",
+    "feedback",
+    "general_question",
+    "shutdown",
+]
+ChosenBy = Literal["robot", "user", "agenda", "motivation"]
+
+
+class Decision(Outbound):
+    """``dms/decision``: one decision, with why it was taken."""
+
+    tick: int
+    time: str
+    action: DecisionAction
+    activity: str | None
+    manager: str | None
+    reason: Reason
+    chosen_by: ChosenBy | None = None
+    detail: str | None = None
+
+
+INBOUND_BY_KEY: dict[str, type[Inbound]] = {
+    "perception/user": UserPerception,
+    "perception/touch": Touch,
+    "perception/speech": Speech,
+    "perception/screen": ScreenChoice,
+    "params/robot": ProfileParams,
+    "params/env": ProfileParams,
+    "request": Request,
+    "robot/feedback": RobotFeedback,
+}
+"""Every input key (after ``robots/<id>/``) and the model that validates it."""
+
+SCHEMAS: dict[str, type[BaseModel]] = {
+    "perception_user": UserPerception,
+    "perception_touch": Touch,
+    "perception_speech": Speech,
+    "perception_screen": ScreenChoice,
+    "params": ProfileParams,
+    "request": Request,
+    "robot_feedback": RobotFeedback,
+    "robot_command": RobotCommand,
+    "dms_errors": ErrorReport,
+    "dms_state": DmsState,
+    "dms_decision": Decision,
+}
+
+
+def json_schema(model: type[BaseModel]) -> dict[str, Any]:
+    """The JSON Schema of one message; ``params/*`` payloads are plain objects."""
+    if model is ProfileParams:
+        inner = ProfileParams.model_json_schema()["properties"]["values"]
+        return {"title": "ProfileParams", **inner}
+    return model.model_json_schema()
+
+
+def write_schemas(directory: Path) -> list[Path]:
+    """Write one ``<name>.schema.json`` per message into ``directory``."""
+    directory.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name, model in SCHEMAS.items():
+        path = directory / f"{name}.schema.json"
+        path.write_text(json.dumps(json_schema(model), indent=2, sort_keys=True) + "\n")
+        written.append(path)
+    return written

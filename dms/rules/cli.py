@@ -1,0 +1,5 @@
+"""Command line of DMSL (dms rules ...), mounted by dms.cli."""
+
+import typer
+
+app = typer.Typer(no_args_is_help=True)
