@@ -190,6 +190,7 @@ Reason = Literal[
     "confirm_cancel",
     "user_left",
     "input_missing",
+    "user_arrived",
     "notification",
     "feedback",
     "general_question",

@@ -1,0 +1,134 @@
+"""Putting the parts together: the same controller stack for the daemon and the simulator.
+
+:func:`build_stack` opens the store and the agenda, loads behaviors and rules, builds
+the motivation model, the expression arbiter over a robot port and the controller.
+The daemon adds Zenoh and a real clock around it; the simulator a virtual clock and
+simulated users.
+"""
+
+from __future__ import annotations
+
+import random
+import zoneinfo
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Any
+
+from activities import BehaviorLibrary
+from agenda import Agenda, AgendaError
+from dms.config import Settings
+from dms.controller import Controller, ControllerDeps
+from dms.errors import ConfigError, DmsError
+from dms.expression import ExpressionArbiter
+from dms.inputs import InputBoard
+from dms.messages import RobotCommand
+from dms.ports import RobotPort
+from dms.profiles import ProfileService
+from dms.rules import LiveRules, RulesError
+from memory import ActivityChooser, PreferenceModel, ProfileError, ProfileStore, QuestionBank
+from memory.db import default_url
+from motivation import MotivationConfig, MotivationModel
+
+
+@dataclass
+class Stack:
+    """A ready controller and the parts it holds, to close in order."""
+
+    controller: Controller
+    inputs: InputBoard
+    expression: ExpressionArbiter
+    store: ProfileStore | None
+    agenda: Agenda | None
+    rules: LiveRules | None
+    library: BehaviorLibrary
+
+    def close(self) -> None:
+        if self.store is not None:
+            self.store.close()
+        if self.agenda is not None:
+            close = getattr(self.agenda, "close", None)
+            if close is not None:
+                close()
+
+
+def hour_in(timezone: str) -> Callable[[datetime], int]:
+    """The hour of day in ``timezone``, for ``params.env.time``."""
+    try:
+        zone = zoneinfo.ZoneInfo(timezone)
+    except (zoneinfo.ZoneInfoNotFoundError, ValueError):
+        raise ConfigError(f"timezone: unknown time zone {timezone!r}") from None
+    return lambda t: t.astimezone(zone).hour
+
+
+def build_stack(
+    settings: Settings,
+    robot: RobotPort,
+    on_command: Callable[[RobotCommand], None],
+    report_error: Callable[[str, str], None],
+    rng: random.Random | None = None,
+    with_memory: bool = True,
+    robot_state: Callable[[], dict[str, Any]] = dict,
+) -> Stack:
+    """Open everything ``settings`` names; raise DmsError with one line if anything is wrong."""
+    rng = rng or random.Random(settings.seed)
+    try:
+        motivation = MotivationModel(MotivationConfig.model_validate(settings.motivation))
+    except DmsError:
+        raise
+    except ValueError as error:
+        raise ConfigError(f"[motivation]: {error}") from None
+    hour = hour_in(settings.timezone)
+    library = BehaviorLibrary.load()
+    rules: LiveRules | None = None
+    if settings.rules.files:
+        try:
+            rules = LiveRules(settings.rules.files)
+        except RulesError as error:
+            raise ConfigError(f"rules: {error}") from None
+    store: ProfileStore | None = None
+    agenda: Agenda | None = None
+    profiles: ProfileService | None = None
+    chooser: ActivityChooser | None = None
+    questions: QuestionBank | None = None
+    if with_memory:
+        url = settings.db or default_url()
+        try:
+            store = ProfileStore(url)
+        except ProfileError as error:
+            raise ConfigError(f"database {url}: {error}") from None
+        profiles = ProfileService(store, report_error)
+        try:
+            model = PreferenceModel.train(store)
+        except (ProfileError, ValueError):
+            model = PreferenceModel.from_seed()
+        chooser = ActivityChooser(model, store)
+        questions = QuestionBank.default()
+
+        def user_exists(user_id: str) -> bool:
+            assert store is not None
+            return user_id in store.list_ids()
+
+        try:
+            agenda = Agenda(url, user_exists=user_exists)
+        except AgendaError as error:
+            store.close()
+            raise ConfigError(f"agenda {url}: {error}") from None
+    expression = ExpressionArbiter(robot, on_command, ack_timeout_s=settings.controller.ack_timeout_s)
+    inputs = InputBoard(settings.inputs.stale_after_s)
+    deps = ControllerDeps(
+        library=library,
+        expression=expression,
+        motivation=motivation,
+        profiles=profiles,
+        agenda=agenda,
+        rules=rules,
+        chooser=chooser,
+        questions=questions,
+        report_error=report_error,
+        robot_state=robot_state,
+    )
+    controller = Controller(
+        deps, inputs, settings.controller, settings.robot_id, rng, timezone_hour=hour
+    )
+    return Stack(controller, inputs, expression, store, agenda, rules, library)

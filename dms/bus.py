@@ -1,0 +1,257 @@
+"""The Zenoh adapter: the only module that imports zenoh.
+
+:class:`ZenohBus` is the daemon's side: it subscribes to the robot's input keys and
+liveliness tokens, publishes JSON on output keys, serves the queryables and declares
+``alive/dms``. :class:`ZenohClient` is the other side, used by the simulated robot and
+visitor, the recorder and anyone scripting the daemon from Python.
+
+Sessions are opened as peers with multicast scouting off; endpoints come from flags or
+from a Zenoh JSON5 file (which is also how a deployment turns on TLS and access control).
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import zenoh
+
+from dms import keys
+from dms.errors import ConfigError
+
+DEFAULT_LISTEN = ("tcp/127.0.0.1:7447",)
+JSON = zenoh.Encoding.APPLICATION_JSON
+
+InputHandler = Callable[[str, bytes], None]
+"""Called with (key relative to the robot, raw payload) from a Zenoh thread."""
+LivelinessHandler = Callable[[str, bool], None]
+"""Called with (input key, alive) when a module's ``alive/<key>`` token comes or goes."""
+QueryHandler = Callable[[str, bytes | None], tuple[bool, Any]]
+"""Called with (relative key, payload); returns (ok, JSON-able reply)."""
+
+
+def make_config(
+    listen: Sequence[str] = (),
+    connect: Sequence[str] = (),
+    config_file: Path | None = None,
+) -> zenoh.Config:
+    """A peer configuration: endpoints from flags (or the file), multicast scouting off."""
+    if config_file is not None:
+        try:
+            config = zenoh.Config.from_file(str(config_file))
+        except (zenoh.ZError, OSError, ValueError) as error:
+            raise ConfigError(f"--zenoh-config {config_file}: {error}") from None
+    else:
+        config = zenoh.Config()
+        config.insert_json5("mode", json.dumps("peer"))
+    try:
+        if listen:
+            config.insert_json5("listen/endpoints", json.dumps(list(listen)))
+        if connect:
+            config.insert_json5("connect/endpoints", json.dumps(list(connect)))
+        config.insert_json5("scouting/multicast/enabled", "false")
+    except (zenoh.ZError, ValueError) as error:
+        raise ConfigError(f"zenoh endpoints: {error}") from None
+    return config
+
+
+def open_session(config: zenoh.Config) -> zenoh.Session:
+    """Open a session or raise ConfigError with Zenoh's reason (port in use, bad endpoint)."""
+    try:
+        return zenoh.open(config)
+    except zenoh.ZError as error:
+        raise ConfigError(f"cannot open the Zenoh session: {error}") from None
+
+
+def encode(payload: Mapping[str, Any] | Sequence[Any]) -> bytes:
+    return json.dumps(payload, separators=(",", ":"), allow_nan=False).encode()
+
+
+class ZenohBus:
+    """The daemon's Zenoh side, for one robot id."""
+
+    def __init__(self, robot_id: str, config: zenoh.Config) -> None:
+        self.robot_id = robot_id
+        self._config = config
+        self._session: zenoh.Session | None = None
+        self._entities: list[Any] = []
+        self._publishers: dict[str, zenoh.Publisher] = {}
+        self._token: zenoh.LivelinessToken | None = None
+        self._lock = threading.Lock()
+
+    def _key(self, key: str) -> str:
+        return keys.absolute(self.robot_id, key)
+
+    def start(
+        self,
+        on_input: InputHandler,
+        on_liveliness: LivelinessHandler,
+        queries: Mapping[str, QueryHandler],
+    ) -> None:
+        """Open the session, subscribe to every input and serve ``queries``.
+
+        ``queries`` maps a relative key (``dms/state``) or prefix ending in ``/``
+        (``users/``) to its handler.
+        """
+        session = self._session = open_session(self._config)
+        robot = self.robot_id
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            key = keys.relative(robot, str(sample.key_expr))
+            if key is not None and sample.kind == zenoh.SampleKind.PUT:
+                on_input(key, sample.payload.to_bytes())
+
+        for key in keys.INPUT_KEYS:
+            self._entities.append(session.declare_subscriber(self._key(key), on_sample))
+
+        alive_prefix = self._key(keys.ALIVE_PREFIX)
+
+        def on_token(sample: zenoh.Sample) -> None:
+            name = str(sample.key_expr)
+            if name.startswith(alive_prefix):
+                on_liveliness(name[len(alive_prefix) :], sample.kind == zenoh.SampleKind.PUT)
+
+        self._entities.append(
+            session.liveliness().declare_subscriber(self._key("alive/**"), on_token, history=True)
+        )
+        for key, handler in queries.items():
+            expr = self._key(key + "**") if key.endswith("/") else self._key(key)
+            self._entities.append(session.declare_queryable(expr, self._serve(handler)))
+        for key in (keys.DMS_STATE, keys.DMS_DECISION, keys.DMS_ERRORS, keys.ROBOT_COMMAND):
+            self._publishers[key] = session.declare_publisher(
+                self._key(key), encoding=JSON, express=True
+            )
+
+    def _serve(self, handler: QueryHandler) -> Callable[[zenoh.Query], None]:
+        robot = self.robot_id
+
+        def on_query(query: zenoh.Query) -> None:
+            key = keys.relative(robot, str(query.key_expr)) or ""
+            payload = query.payload.to_bytes() if query.payload is not None else None
+            ok, reply = handler(key, payload)
+            if ok:
+                query.reply(query.key_expr, encode(reply), encoding=JSON)
+            else:
+                query.reply_err(encode(reply), encoding=JSON)
+
+        return on_query
+
+    def publish(self, key: str, payload: Mapping[str, Any]) -> None:
+        """Publish JSON on ``robots/<id>/<key>`` (thread-safe)."""
+        data = encode(payload)
+        publisher = self._publishers.get(key)
+        if publisher is not None:
+            publisher.put(data)
+        elif self._session is not None:
+            self._session.put(self._key(key), data, encoding=JSON)
+
+    def declare_alive(self) -> None:
+        """Declare ``alive/dms``: the daemon is ready."""
+        assert self._session is not None
+        self._token = self._session.liveliness().declare_token(self._key(keys.ALIVE_DMS))
+
+    def close(self) -> None:
+        with self._lock:
+            if self._token is not None:
+                self._token.undeclare()
+                self._token = None
+            for entity in self._entities:
+                entity.undeclare()
+            for publisher in self._publishers.values():
+                publisher.undeclare()
+            self._entities.clear()
+            self._publishers.clear()
+            if self._session is not None:
+                self._session.close()
+                self._session = None
+
+
+class ZenohClient:
+    """Another process's side of the key space: publish inputs, watch outputs, query.
+
+    Used by the simulated robot (``dms sim robot``), the demo visitor and the recorder.
+    """
+
+    def __init__(self, robot_id: str, config: zenoh.Config) -> None:
+        self.robot_id = robot_id
+        self.session = open_session(config)
+        self._entities: list[Any] = []
+
+    def __enter__(self) -> ZenohClient:
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        self.close()
+
+    def key(self, key: str) -> str:
+        return keys.absolute(self.robot_id, key)
+
+    def publish(self, key: str, payload: Mapping[str, Any]) -> None:
+        self.session.put(self.key(key), encode(payload), encoding=JSON)
+
+    def subscribe(self, key: str, handler: Callable[[str, Any], None]) -> None:
+        """Call ``handler(relative key, decoded JSON)`` for each sample on ``key``."""
+        robot = self.robot_id
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            rel = keys.relative(robot, str(sample.key_expr)) or str(sample.key_expr)
+            try:
+                payload = json.loads(sample.payload.to_bytes())
+            except ValueError:
+                return  # not ours to judge: the daemon never publishes invalid JSON
+            handler(rel, payload)
+
+        self._entities.append(self.session.declare_subscriber(self.key(key), on_sample))
+
+    def subscribe_raw(self, key_expr: str, handler: Callable[[str, bytes], None]) -> None:
+        """Call ``handler(full key, raw bytes)`` for each sample on an absolute key expression."""
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            handler(str(sample.key_expr), sample.payload.to_bytes())
+
+        self._entities.append(self.session.declare_subscriber(key_expr, on_sample))
+
+    def declare_token(self, key: str) -> zenoh.LivelinessToken:
+        token = self.session.liveliness().declare_token(self.key(key))
+        self._entities.append(token)
+        return token
+
+    def wait_alive(self, key: str, timeout_s: float) -> bool:
+        """Wait until the token ``robots/<id>/<key>`` exists."""
+        seen = threading.Event()
+
+        def on_token(sample: zenoh.Sample) -> None:
+            if sample.kind == zenoh.SampleKind.PUT:
+                seen.set()
+
+        sub = self.session.liveliness().declare_subscriber(self.key(key), on_token, history=True)
+        try:
+            return seen.wait(timeout_s)
+        finally:
+            sub.undeclare()
+
+    def query(
+        self, key: str, payload: Mapping[str, Any] | None = None, timeout_s: float = 5.0
+    ) -> list[tuple[bool, Any]]:
+        """``session.get`` on ``robots/<id>/<key>``: (ok, decoded JSON) per reply."""
+        replies = self.session.get(
+            self.key(key),
+            payload=encode(payload) if payload is not None else None,
+            timeout=timeout_s,
+        )
+        out: list[tuple[bool, Any]] = []
+        for reply in replies:
+            if reply.ok is not None:
+                out.append((True, json.loads(reply.ok.payload.to_bytes())))
+            elif reply.err is not None:
+                out.append((False, json.loads(reply.err.payload.to_bytes())))
+        return out
+
+    def close(self) -> None:
+        for entity in self._entities:
+            entity.undeclare()
+        self._entities.clear()
+        self.session.close()

@@ -1,0 +1,152 @@
+"""The daemon's configuration: a TOML file, then command-line flags on top.
+
+Every section is validated by pydantic; a wrong value is reported as one line naming
+the file, the field and what was wrong (:class:`dms.errors.ConfigError`).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from dms.errors import ConfigError
+from dms.keys import INPUT_KEYS, ROBOT_ID_RE
+
+Fraction = float
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class ZenohSettings(_Section):
+    listen: list[str] = Field(default_factory=lambda: ["tcp/127.0.0.1:7447"])
+    connect: list[str] = Field(default_factory=list)
+    config_file: Path | None = None
+
+
+class InputSettings(_Section):
+    stale_after_s: dict[str, float | None] = Field(
+        default_factory=lambda: {"perception/user": 5.0}
+    )
+
+    @field_validator("stale_after_s")
+    @classmethod
+    def _known_keys(cls, value: dict[str, float | None]) -> dict[str, float | None]:
+        for key, seconds in value.items():
+            if key not in INPUT_KEYS:
+                raise ValueError(f"{key!r} is not an input key")
+            if seconds is not None and seconds <= 0:
+                raise ValueError(f"{key}: must be > 0 seconds")
+        return value
+
+
+class ControllerSettings(_Section):
+    tick_period_s: float = Field(0.5, gt=0.0, le=10.0)
+    confirm_timeout_s: float = Field(10.0, gt=0.0)
+    """How long the shoulder dialog waits for "continue" or "stop" before resuming."""
+    question_timeout_s: float = Field(15.0, gt=0.0)
+    feedback_probability: float = Field(0.5, ge=0.0, le=1.0)
+    session_questions: int = Field(4, ge=0, le=50)
+    """General questions asked when a session starts (the paper: 4-5)."""
+    question_every: int = Field(3, ge=0)
+    """Then one more general question every N activities (0: never)."""
+    user_initiative: dict[Literal["high", "moderate", "low", "unknown"], float] = Field(
+        default_factory=lambda: {"high": 0.8, "moderate": 0.5, "unknown": 0.5, "low": 0.2}
+    )
+    """Probability that the user takes the initiative, by proactivity."""
+    ack_timeout_s: float = Field(10.0, gt=0.0)
+    """A robot command not acknowledged within this fails its activity."""
+
+    @field_validator("user_initiative")
+    @classmethod
+    def _probabilities(cls, value: dict[str, float]) -> dict[str, float]:
+        for level, p in value.items():
+            if not 0.0 <= p <= 1.0:
+                raise ValueError(f"{level}: {p} is not a probability in [0, 1]")
+        return value
+
+
+class RulesSettings(_Section):
+    files: list[Path] = Field(default_factory=list)
+    schema_file: Path | None = None
+
+
+class Settings(_Section):
+    """Everything ``dms run`` needs."""
+
+    robot_id: str = "mini"
+    db: str | None = None
+    """SQLAlchemy URL; None means a SQLite file in the user's data folder."""
+    robot: Literal["sim", "zenoh"] = "sim"
+    seed: int | None = None
+    timezone: str = "UTC"
+    zenoh: ZenohSettings = Field(default_factory=ZenohSettings)
+    inputs: InputSettings = Field(default_factory=InputSettings)
+    controller: ControllerSettings = Field(default_factory=ControllerSettings)
+    rules: RulesSettings = Field(default_factory=RulesSettings)
+    motivation: dict[str, Any] = Field(default_factory=dict)
+    """Validated by the motivation package's own model."""
+    source: Path | None = Field(default=None, exclude=True)
+
+    @field_validator("robot_id")
+    @classmethod
+    def _robot_id(cls, value: str) -> str:
+        if not ROBOT_ID_RE.match(value):
+            raise ValueError(f"{value!r} does not match [a-z0-9_-]+")
+        return value
+
+
+def _describe(error: ValidationError, where: str) -> str:
+    first = error.errors(include_url=False)[0]
+    field = ".".join(str(part) for part in first["loc"]) or "(top level)"
+    more = f" (and {error.error_count() - 1} more)" if error.error_count() > 1 else ""
+    return f"{where}: {field}: {first['msg']}{more}"
+
+
+def load_config(
+    path: Path | None = None,
+    *,
+    robot_id: str | None = None,
+    db: str | None = None,
+    listen: Sequence[str] | None = None,
+    connect: Sequence[str] | None = None,
+    zenoh_config: Path | None = None,
+    robot: str | None = None,
+    seed: int | None = None,
+) -> Settings:
+    """Read ``path`` (TOML) if given, then apply the flags that were set."""
+    data: dict[str, Any] = {}
+    where = "configuration"
+    if path is not None:
+        where = str(path)
+        try:
+            data = tomllib.loads(path.read_text(encoding="utf-8"))
+        except OSError as error:
+            raise ConfigError(f"{path}: cannot read: {error.strerror}") from None
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
+            raise ConfigError(f"{path}: not valid TOML: {error}") from None
+    flags: dict[str, Any] = {"robot_id": robot_id, "db": db, "robot": robot, "seed": seed}
+    data.update({name: value for name, value in flags.items() if value is not None})
+    zenoh = dict(data.get("zenoh") or {})
+    if listen:
+        zenoh["listen"] = list(listen)
+    if connect:
+        zenoh["connect"] = list(connect)
+    if zenoh_config is not None:
+        zenoh["config_file"] = zenoh_config
+    if zenoh:
+        data["zenoh"] = zenoh
+    try:
+        settings = Settings.model_validate(data)
+    except ValidationError as error:
+        raise ConfigError(_describe(error, where)) from None
+    settings.source = path
+    if path is not None:
+        base = path.parent
+        settings.rules.files = [f if f.is_absolute() else base / f for f in settings.rules.files]
+    return settings

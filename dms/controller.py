@@ -1,0 +1,856 @@
+"""The central controller: the paper's decision loop, one tick at a time.
+
+``Controller.tick(now, monotonic)`` runs steps 1 to 9 of DESIGN.md's decision loop
+once and returns a :class:`TickRecord`: the decisions taken, with their reasons, and
+the resulting :class:`~dms.messages.DmsState`. It never reads the clock, never blocks
+and never touches Zenoh: the daemon calls it at 2 Hz (and at once on urgent inputs)
+and publishes the record; simulations call it on a virtual clock.
+
+Order of work in one tick:
+
+1. Read the inputs (stale and missing ones are left out) and step the motivation.
+2. Urgent events: requests, touches, speech and screen choices (answers to a dialog or
+   to the running activity first, then requests for an activity by name).
+3. If an activity runs: the cancel reasons in the paper's order, (a) the dominant
+   motivation changed while no user interacts, (b) the user asked for a change,
+   (c) a high-priority agenda item is due, (d) the activity failed or redirected.
+4-8. Otherwise choose: the motivation's behavior with no user; with a user, load the
+   profile, run a due agenda item, ask a general question or for feedback now and then,
+   or choose by the user's proactivity (robot, user, or both with a probability).
+"""
+
+from __future__ import annotations
+
+import logging
+import random
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from datetime import datetime
+from typing import Any
+
+from activities import ActivityContext, BehaviorLibrary
+from activities.synonyms import match_activity
+from agenda import Agenda, DueItem
+from dms import keys
+from dms.activity_names import ACTIVITIES, ENTERTAINMENT_ACTIVITIES, ManagerName, manager_of
+from dms.clock import iso
+from dms.config import ControllerSettings
+from dms.dialog import (
+    CONFIRM_STOP,
+    Dialog,
+    DialogKind,
+    confirm_dialog,
+    feedback_dialog,
+    feedback_score,
+)
+from dms.dialog import SOURCE as DIALOG_SOURCE
+from dms.expression import ExpressionArbiter
+from dms.inputs import InputBoard, InputSnapshot
+from dms.messages import (
+    ActivityState,
+    ChosenBy,
+    Decision,
+    DecisionAction,
+    DmsState,
+    Mode,
+    MotivationSnapshot,
+    Reason,
+    Request,
+    ScreenChoice,
+    Speech,
+    Touch,
+    UserPerception,
+    UserState,
+)
+from dms.profiles import ProfileService
+from dms.rules import LiveRules
+from managers import Manager, ManagerReply, ManagerStatus, make_managers
+from memory import ActivityChooser, Profile, Question, QuestionBank
+from motivation import MotivationModel, MotivationState, Percepts
+
+log = logging.getLogger(__name__)
+
+NO_FEEDBACK_FOR = frozenset({"menu", "notification", "sleep", "wait", "instructions"})
+"""Activities after which the robot does not ask how much the user liked them."""
+
+MODE_BY_PROACTIVITY: dict[str, Mode] = {
+    "high": "user_choice",
+    "low": "autonomous",
+    "moderate": "hybrid",
+    "unknown": "hybrid",
+}
+RULE_MODES: dict[str, float] = {"autonomous": 0.0, "user_choice": 1.0, "hybrid": 0.5}
+"""A ``ChooseMode`` activation and the probability that the user takes the initiative."""
+
+
+@dataclass
+class Running:
+    """The activity the controller believes runs, and why it was started."""
+
+    name: str
+    manager: ManagerName
+    chosen_by: ChosenBy | None
+    reason: Reason
+    started: datetime
+    user_id: str | None
+    paused: bool = False
+    agenda_item: DueItem | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class TickRecord:
+    """What one tick decided and the state it left: logged, published, asserted."""
+
+    tick: int
+    time: datetime
+    urgent: bool
+    decisions: tuple[Decision, ...]
+    state: DmsState
+
+
+@dataclass
+class Counters:
+    """Running totals for metrics and studies."""
+
+    ticks: int = 0
+    decisions: int = 0
+    activity_failures: int = 0
+    not_loaded: int = 0
+    unanswered: int = 0
+    by_reason: dict[str, int] = field(default_factory=dict)
+
+
+@dataclass
+class ControllerDeps:
+    """Everything the controller works with; the daemon and the simulator build it."""
+
+    library: BehaviorLibrary
+    expression: ExpressionArbiter
+    motivation: MotivationModel
+    profiles: ProfileService | None = None
+    agenda: Agenda | None = None
+    rules: LiveRules | None = None
+    chooser: ActivityChooser | None = None
+    questions: QuestionBank | None = None
+    report_error: Callable[[str, str], None] = lambda key, error: None
+    robot_state: Callable[[], Mapping[str, Any]] = dict
+
+
+@dataclass
+class _Session:
+    user_id: str
+    session_id: int | None
+    started: datetime
+    mode: Mode
+    p_user: float
+    mode_detail: str | None
+    questions_left: int
+    activities_done: int = 0
+    asked: set[str] = field(default_factory=set)
+    last_activity: str | None = None
+
+
+class Controller:
+    """The decision loop over managers, activities, motivation, memory and agenda."""
+
+    def __init__(
+        self,
+        deps: ControllerDeps,
+        inputs: InputBoard,
+        settings: ControllerSettings | None = None,
+        robot_id: str = "mini",
+        rng: random.Random | None = None,
+        timezone_hour: Callable[[datetime], int] = lambda t: t.hour,
+    ) -> None:
+        self.deps = deps
+        self.inputs = inputs
+        self.settings = settings or ControllerSettings()
+        self.robot_id = robot_id
+        self.rng = rng or random.Random()
+        self._hour = timezone_hour
+        self.managers: dict[ManagerName, Manager] = make_managers(deps.library)
+        self.counters = Counters()
+        self._tick = 0
+        self._decisions: list[Decision] = []
+        self._now: datetime | None = None
+        self._last_step: datetime | None = None
+        self._motivation: MotivationState | None = None
+        self.current: Running | None = None
+        self.suspended: Running | None = None
+        self.dialog: Dialog | None = None
+        self._question: Question | None = None
+        self._session: _Session | None = None
+        self._snapshot: InputSnapshot | None = None
+        self._user: UserPerception | None = None
+        self._requests: list[tuple[str, ChosenBy | None, str]] = []
+        self._touches: list[tuple[str, str]] = []
+        self._state: DmsState | None = None
+
+    # ------------------------------------------------------------------ the tick
+
+    def tick(self, now: datetime, monotonic: float, urgent: bool = False) -> TickRecord:
+        """Run the decision loop once at ``now``; see the module docstring."""
+        self._now = now
+        self._tick += 1
+        self.counters.ticks += 1
+        self._decisions = []
+        snapshot = self._snapshot = self.inputs.take(monotonic)
+        user = snapshot.values.get(keys.PERCEPTION_USER)
+        self._user = user if isinstance(user, UserPerception) else None
+        self._touches = []
+        self._handle_events(snapshot, now)
+        self._step_motivation(snapshot, now)
+        self.deps.expression.update(now)
+        if self.deps.profiles is not None:
+            self.deps.profiles.retry(now)
+        self._track_user(now)
+        self._advance_dialog(now)
+        if self.dialog is None:
+            self._tick_activities(now)
+            if self.current is not None:
+                self._check_cancel_reasons(now)
+            if self.current is None and self.dialog is None:
+                self._choose(now)
+        state = self._state = self.build_state(now)
+        self.counters.decisions += len(self._decisions)
+        return TickRecord(self._tick, now, urgent, tuple(self._decisions), state)
+
+    def shutdown(self, now: datetime) -> TickRecord:
+        """Stop what runs (SIGINT/SIGTERM): cancel the activity and any suspended one."""
+        self._now = now
+        self._decisions = []
+        if self.dialog is not None:
+            self.dialog = None
+            self.deps.expression.interrupt_source(DIALOG_SOURCE, now)
+        for running in (self.current, self.suspended):
+            if running is not None:
+                self._cancel(running, "shutdown", now)
+        self.current = self.suspended = None
+        if self._session is not None:
+            self._end_session(now)
+        state = self._state = self.build_state(now)
+        return TickRecord(self._tick, now, False, tuple(self._decisions), state)
+
+    # ------------------------------------------------------------------ step 1
+
+    def _step_motivation(self, snapshot: InputSnapshot, now: datetime) -> None:
+        model = self.deps.motivation
+        if self._motivation is None:
+            self._motivation = model.initial_state(now)
+            self._last_step = now
+        dt = (now - self._last_step).total_seconds() if self._last_step else 0.0
+        if dt <= 0:
+            return
+        user_ok = keys.PERCEPTION_USER in snapshot.values
+        percepts = Percepts(
+            user_present=(self._user.present if self._user else False) if user_ok else None,
+            engagement=self._user.engagement if self._user else None,
+            env=snapshot.env_params if keys.PARAMS_ENV in snapshot.values else None,
+            touches=tuple(self._touches),
+        )
+        stimuli = model.stimuli(percepts)
+        running = self.current.name if self.current and not self.current.paused else None
+        self._motivation = model.step(self._motivation, dt, stimuli, running, now)
+        self._last_step = now
+
+    # ------------------------------------------------------------------ step 2: events
+
+    def _handle_events(self, snapshot: InputSnapshot, now: datetime) -> None:
+        for event in snapshot.events:
+            message = event.message
+            if isinstance(message, Request):
+                self._on_request(message, now)
+            elif isinstance(message, Touch):
+                self._touches.append((message.part, message.kind))
+                self._on_touch(message, now)
+            elif isinstance(message, Speech):
+                self._on_answer(message.text, "voice", message, now)
+            elif isinstance(message, ScreenChoice):
+                self._on_answer(message.choice, "screen", message, now)
+
+    def _on_request(self, request: Request, now: datetime) -> None:
+        by = request.by or "request"
+        if request.action == "reload_rules":
+            self.reload_rules()
+        elif request.action == "start" and request.activity is not None:
+            self._requests.append((request.activity, "user", f"requested by {by}"))
+        elif request.action == "cancel" and self.current is not None:
+            if request.activity in (None, self.current.name):
+                self._requests.append(("", "user", f"cancel requested by {by}"))
+        elif request.action == "pause" and self.current is not None and not self.current.paused:
+            self._pause(self.current, "user_request", now, f"requested by {by}")
+        elif request.action == "resume" and self.current is not None and self.current.paused:
+            if self.dialog is None:
+                self._resume(self.current, "user_request", now, f"requested by {by}")
+
+    def _on_touch(self, touch: Touch, now: datetime) -> None:
+        running = self.current
+        if touch.part == "right_shoulder" and running is not None and self.dialog is None:
+            if running.chosen_by != "motivation" and running.name not in ("notification",):
+                self._pause(running, "confirm_cancel", now, "right shoulder touched")
+                self._open_dialog(confirm_dialog(running.name, now, self.settings.confirm_timeout_s), now)
+                return
+        if running is not None:
+            self.managers[running.manager].deliver(touch)
+
+    def _on_answer(
+        self, text: str, channel: str, event: Speech | ScreenChoice, now: datetime
+    ) -> None:
+        if self.dialog is not None:
+            if self.dialog.offer(text, channel):
+                self._advance_dialog(now)
+            return
+        running = self.current
+        if running is not None and self.managers[running.manager].deliver(event):
+            return
+        wanted = match_activity(text)
+        if wanted is not None and wanted in ACTIVITIES and (running is None or wanted != running.name):
+            self._requests.append((wanted, "user", f"asked by {channel}: {text[:60]!r}"))
+            self._note_initiative(True, now)
+
+    # ------------------------------------------------------------------ dialogs
+
+    def _open_dialog(self, dialog: Dialog, now: datetime) -> None:
+        self.dialog = dialog
+        dialog.ask(self.deps.expression, now)
+        activity = dialog.context.get("activity")
+        self._decide("ask", activity, dialog.kind.value, None, dialog.question, now)
+
+    def _advance_dialog(self, now: datetime) -> None:
+        dialog = self.dialog
+        if dialog is None or (dialog.answer is None and not dialog.expired(now)):
+            return
+        self.dialog = None
+        self.deps.expression.interrupt_source(DIALOG_SOURCE, now)
+        answered = dialog.answer is not None
+        self._note_interaction(dialog.channel or self._style(), answered, now)
+        if dialog.kind is DialogKind.CONFIRM_CANCEL:
+            self._close_confirm(dialog, now)
+        elif dialog.kind is DialogKind.FEEDBACK and dialog.answer is not None:
+            score = feedback_score(dialog.answer)
+            if score is not None and self._session is not None:
+                self._profiles_call(
+                    "record_feedback", self._session.user_id, dialog.context["activity"], score, now
+                )
+        elif dialog.kind is DialogKind.GENERAL_QUESTION:
+            question = self._question
+            self._question = None
+            if question is not None and dialog.answer is not None and self._session:
+                self._profiles_call(
+                    "record_answer", self._session.user_id, question.id, dialog.answer, now
+                )
+        if not answered:
+            self.counters.unanswered += 1
+
+    def _close_confirm(self, dialog: Dialog, now: datetime) -> None:
+        running = self.current
+        if running is None:
+            return
+        if dialog.answer is not None and dialog.answer in CONFIRM_STOP:
+            self._cancel(running, "confirm_cancel", now, f"the user said {dialog.answer!r}")
+            self._finish_user_activity(running, "cancelled", now, ask_feedback=False)
+            self.current = None
+        else:
+            why = f"the user said {dialog.answer!r}" if dialog.answer else "no answer"
+            self._resume(running, "confirm_cancel", now, why)
+
+    # ------------------------------------------------------------------ user presence
+
+    def _ready_user(self) -> str | None:
+        user = self._user
+        if user is not None and user.present and user.ready and user.user_id:
+            return user.user_id
+        return None
+
+    def _track_user(self, now: datetime) -> None:
+        ready = self._ready_user()
+        session = self._session
+        if session is not None and self._user_gone(session.user_id):
+            missing = self._snapshot is not None and keys.PERCEPTION_USER not in self._snapshot.values
+            reason: Reason = "input_missing" if missing else "user_left"
+            if self.dialog is not None and self.dialog.kind is not DialogKind.CONFIRM_CANCEL:
+                self.dialog = None
+                self.deps.expression.interrupt_source(DIALOG_SOURCE, now)
+            for running in (self.current, self.suspended):
+                if running is not None and running.user_id == session.user_id:
+                    self._cancel(running, reason, now, f"{session.user_id} is gone")
+                    self._finish_user_activity(running, "cancelled", now, ask_feedback=False)
+                    if running is self.current:
+                        self.current = None
+                    else:
+                        self.suspended = None
+            if self.dialog is not None:
+                self.dialog = None
+                self.deps.expression.interrupt_source(DIALOG_SOURCE, now)
+            self._end_session(now)
+            session = None
+        if session is None and ready is not None:
+            self._begin_session(ready, now)
+
+    def _user_gone(self, user_id: str) -> bool:
+        user = self._user
+        if user is None:
+            return True
+        return not user.present or (user.user_id is not None and user.user_id != user_id)
+
+    def _begin_session(self, user_id: str, now: datetime) -> None:
+        profile = self._load_profile(user_id, now)
+        session_id = self._profiles_call("start_session", user_id, now)
+        if self.deps.agenda is not None:
+            self._agenda_call("user_perceived", user_id, now)
+        mode, p_user, detail = self._choose_mode(profile)
+        self._session = _Session(
+            user_id=user_id,
+            session_id=session_id if isinstance(session_id, int) else None,
+            started=now,
+            mode=mode,
+            p_user=p_user,
+            mode_detail=detail,
+            questions_left=self.settings.session_questions,
+        )
+        log.info("user %s is ready (mode %s)", user_id, mode)
+
+    def _end_session(self, now: datetime) -> None:
+        session = self._session
+        self._session = None
+        if session is not None and session.session_id is not None:
+            self._profiles_call("end_session", session.session_id, now)
+
+    def _load_profile(self, user_id: str, now: datetime) -> Profile | None:
+        if self.deps.profiles is None:
+            return None
+        return self.deps.profiles.load(user_id, now)
+
+    def _profile(self) -> Profile | None:
+        if self.deps.profiles is None or self._session is None:
+            return None
+        return self.deps.profiles.cached(self._session.user_id)
+
+    def _style(self) -> str:
+        profile = self._profile()
+        return str(getattr(profile, "interaction_style", None) or "voice")
+
+    def _choose_mode(self, profile: Profile | None) -> tuple[Mode, float, str | None]:
+        result = self._rule("ChooseMode")
+        if result is not None and result.activate and result.activate[0] in RULE_MODES:
+            chosen = result.activate[0]
+            mode: Mode = chosen  # type: ignore[assignment]
+            return mode, RULE_MODES[chosen], f"rule ChooseMode -> {chosen}"
+        proactivity = str(getattr(profile, "proactivity", None) or "unknown")
+        p_user = self.settings.user_initiative.get(proactivity, 0.5)  # type: ignore[call-overload]
+        return MODE_BY_PROACTIVITY.get(proactivity, "hybrid"), p_user, None
+
+    # ------------------------------------------------------------------ activities
+
+    def _context(self, name: str) -> ActivityContext:
+        return ActivityContext(
+            expression=self.deps.expression,
+            source=f"activity:{name}",
+            params=self.params,
+            rules=self.deps.rules,
+            rng=self.rng,
+            set_user_param=self._set_user_param,
+        )
+
+    def _set_user_param(self, name: str, value: Any) -> None:
+        if self._session is not None and self._now is not None:
+            self._profiles_call("update", self._session.user_id, self._now, **{name: value})
+
+    def params(self) -> Mapping[str, Mapping[str, Any]]:
+        """``params.user``, ``params.robot`` and ``params.env`` for rules and behaviors."""
+        profile = self._profile()
+        user: dict[str, Any] = dict(profile.params()) if profile is not None else {}
+        if self._session is not None:
+            user.setdefault("id", self._session.user_id)
+        snapshot = self._snapshot
+        robot = {**self.deps.robot_state(), **(snapshot.robot_params if snapshot else {})}
+        env: dict[str, Any] = dict(snapshot.env_params) if snapshot else {}
+        if self._now is not None:
+            env["time"] = self._hour(self._now)
+        return {"user": user, "robot": robot, "env": env}
+
+    def _rule(self, component: str) -> Any:
+        rules = self.deps.rules
+        if rules is None:
+            return None
+        try:
+            return rules.evaluate(component, self.params())
+        except Exception as error:  # a designer's rule must never stop the robot
+            log.exception("rule %s failed", component)
+            self.deps.report_error("rules", f"{component}: {error}")
+            return None
+
+    def reload_rules(self) -> None:
+        """Reload the rules files; keep the old rules if the new ones do not verify."""
+        if self.deps.rules is None:
+            return
+        problems = self.deps.rules.reload()
+        for problem in problems:
+            self.deps.report_error("rules", str(problem))
+
+    def _start(
+        self,
+        name: str,
+        reason: Reason,
+        chosen_by: ChosenBy | None,
+        now: datetime,
+        detail: str | None = None,
+        args: Mapping[str, Any] | None = None,
+        agenda_item: DueItem | None = None,
+    ) -> bool:
+        manager = manager_of(name)
+        reply = self.managers[manager].start(name, self._context(name), now, args)
+        if reply.status is not ManagerStatus.RUNNING:
+            self.counters.not_loaded += 1
+            self._decide("fail", name, "activity_error", chosen_by, reply.detail, now)
+            return False
+        user_id = self._session.user_id if self._session else None
+        self.current = Running(name, manager, chosen_by, reason, now, user_id, agenda_item=agenda_item)
+        self._decide("start", name, reason, chosen_by, detail, now)
+        return True
+
+    def _pause(self, running: Running, reason: Reason, now: datetime, detail: str | None) -> None:
+        self.managers[running.manager].pause(now)
+        running.paused = True
+        self._decide("pause", running.name, reason, running.chosen_by, detail, now)
+
+    def _resume(self, running: Running, reason: Reason, now: datetime, detail: str | None) -> None:
+        self.managers[running.manager].resume(now)
+        running.paused = False
+        self._decide("resume", running.name, reason, running.chosen_by, detail, now)
+
+    def _cancel(
+        self, running: Running, reason: Reason, now: datetime, detail: str | None = None
+    ) -> ManagerReply:
+        reply = self.managers[running.manager].cancel(now)
+        self._decide("cancel", running.name, reason, running.chosen_by, detail, now)
+        return reply
+
+    def _tick_activities(self, now: datetime) -> None:
+        running = self.current
+        if running is None:
+            return
+        reply = self.managers[running.manager].tick(now)
+        if reply.status in (ManagerStatus.RUNNING, ManagerStatus.PAUSED, ManagerStatus.IDLE):
+            if reply.status is ManagerStatus.IDLE:
+                self.current = None  # the manager lost it: start afresh
+            return
+        self.current = None
+        if running.agenda_item is not None and self.deps.agenda is not None:
+            self._agenda_call("delivered", running.agenda_item, now)
+        if reply.status is ManagerStatus.FAILED:
+            self.counters.activity_failures += 1
+            self._decide("fail", running.name, "activity_error", running.chosen_by, reply.detail, now)
+            self._finish_user_activity(running, "failed", now, ask_feedback=False)
+        elif reply.status is ManagerStatus.COMPLETED:
+            self._decide("complete", running.name, "completed", running.chosen_by, reply.detail, now)
+            self._finish_user_activity(running, "completed", now, ask_feedback=True)
+            if reply.redirect:
+                self._follow_redirect(running, reply.redirect, now)
+        elif reply.status is ManagerStatus.CANCELLED:
+            self._finish_user_activity(running, "cancelled", now, ask_feedback=False)
+        if self.current is None and self.suspended is not None:
+            suspended, self.suspended = self.suspended, None
+            self.current = suspended
+            self._resume(suspended, "agenda", now, f"after the {running.name}")
+
+    def _follow_redirect(self, running: Running, target: str, now: datetime) -> None:
+        if target not in ACTIVITIES:
+            self._decide("fail", running.name, "activity_error", running.chosen_by, f"redirect to unknown {target!r}", now)
+            return
+        if running.name == "menu":
+            self._note_initiative(True, now)
+            self._start(target, "user_choice", "user", now, "chosen from the menu")
+        else:
+            self._start(target, "activity_redirect", running.chosen_by, now, f"asked for by {running.name}")
+
+    def _finish_user_activity(
+        self, running: Running, outcome: str, now: datetime, ask_feedback: bool
+    ) -> None:
+        session = self._session
+        if session is None or running.user_id != session.user_id or running.name in ("menu",):
+            return
+        self._profiles_call(
+            "record_activity",
+            session.user_id,
+            running.name,
+            running.started,
+            now,
+            outcome,
+            running.chosen_by or "robot",
+            outcome == "cancelled",
+            session.session_id,
+        )
+        if running.name in NO_FEEDBACK_FOR:
+            return
+        session.activities_done += 1
+        session.last_activity = running.name
+        if ask_feedback and self.rng.random() < self.settings.feedback_probability:
+            self._open_dialog(feedback_dialog(running.name, now, self.settings.question_timeout_s), now)
+
+    # ------------------------------------------------------------------ step 2: cancel reasons
+
+    def _check_cancel_reasons(self, now: datetime) -> None:
+        running = self.current
+        assert running is not None
+        ready = self._ready_user()
+        # (a) no user interacts and the dominant motivation changed
+        if running.chosen_by == "motivation":
+            if ready is not None:
+                self._cancel(running, "user_arrived", now, f"{ready} is ready to interact")
+                self.current = None
+                return
+            wanted = self._motivated_behavior()
+            if wanted != running.name and self._interruption_allowed(running):
+                self._cancel(running, "motivation_changed", now, f"now {self._dominant() or 'none'} dominates")
+                self.current = None
+                return
+        # (b) the user asked to change
+        if self._requests:
+            target, chosen_by, detail = self._requests.pop(0)
+            if target != running.name:
+                self._cancel(running, "user_request", now, detail)
+                self._finish_user_activity(running, "cancelled", now, ask_feedback=False)
+                self.current = None
+                if self.suspended is not None:
+                    self._cancel(self.suspended, "user_request", now, detail)
+                    self.suspended = None
+                if target:
+                    self._start(target, "user_request", chosen_by, now, detail)
+                return
+        # (c) a high-priority agenda item is due (reminders pause instead)
+        for item in self._due_items(now):
+            if running.paused or running.name == "notification":
+                break
+            if item.kind == "reminder" and self.suspended is None:
+                if self._interruption_allowed(running):
+                    self._pause(running, "agenda", now, f"reminder {item.item_id}")
+                    self.suspended = running
+                    self.current = None
+                    self._run_agenda_item(item, now)
+                return
+            if item.kind == "event" and item.priority == "high" and self._interruption_allowed(running):
+                self._cancel(running, "agenda", now, f"event {item.item_id} ({item.activity})")
+                self._finish_user_activity(running, "cancelled", now, ask_feedback=False)
+                self.current = None
+                self._run_agenda_item(item, now)
+                return
+
+    def _interruption_allowed(self, running: Running) -> bool:
+        result = self._rule("AllowInterruption")
+        return not (result is not None and "deny" in result.activate)
+
+    # ------------------------------------------------------------------ steps 3-8: choose
+
+    def _choose(self, now: datetime) -> None:
+        ready = self._ready_user()
+        session = self._session
+        if ready is None or session is None:
+            if self._requests:
+                target, chosen_by, detail = self._requests.pop(0)
+                if target:
+                    self._start(target, "user_request", chosen_by, now, detail)
+                return
+            behavior = self._motivated_behavior()
+            self._start(behavior, "motivation", "motivation", now, f"dominant: {self._dominant() or 'none'}")
+            return
+        if self._requests:
+            target, chosen_by, detail = self._requests.pop(0)
+            if target:
+                self._start(target, "user_request", chosen_by, now, detail)
+                return
+        for item in self._due_items(now):
+            self._run_agenda_item(item, now)
+            return
+        if self._ask_general_question(session, now):
+            return
+        if self.rng.random() < session.p_user:
+            self._start("menu", "user_choice", "user", now, session.mode_detail)
+            return
+        self._robot_choice(session, now)
+
+    def _robot_choice(self, session: _Session, now: datetime) -> None:
+        exclude = {session.last_activity} if session.last_activity else set()
+        result = self._rule("ChooseEntertainment")
+        if result is not None and result.activate and result.activate[0] in ENTERTAINMENT_ACTIVITIES:
+            name = result.activate[0]
+            self._start(name, "preference", "robot", now, f"rule ChooseEntertainment -> {name}")
+            return
+        chooser = self.deps.chooser
+        profile = self._profile()
+        entertainment = self.managers[ManagerName.ENTERTAINMENT]
+        assert hasattr(entertainment, "choose")
+        if chooser is not None and profile is not None:
+            name = entertainment.choose(
+                self.rng, lambda rng, ex: chooser.choose(profile, rng, exclude=ex), exclude
+            )
+        else:
+            name = entertainment.choose(self.rng, None, exclude)
+        self._start(name, "preference", "robot", now, "predicted preference")
+
+    def _ask_general_question(self, session: _Session, now: datetime) -> bool:
+        bank = self.deps.questions
+        profile = self._profile()
+        if bank is None or profile is None:
+            return False
+        due = session.questions_left > 0 or (
+            self.settings.question_every > 0
+            and session.activities_done > 0
+            and session.activities_done % self.settings.question_every == 0
+            and session.last_activity is not None
+            and f"after:{session.activities_done}" not in session.asked
+        )
+        if not due:
+            return False
+        session.asked.add(f"after:{session.activities_done}")
+        question = bank.next_question(profile, self.rng, session.asked)
+        if question is None:
+            session.questions_left = 0
+            return False
+        session.asked.add(question.id)
+        session.questions_left = max(0, session.questions_left - 1)
+        self._question = question
+        from datetime import timedelta
+
+        self._open_dialog(
+            Dialog(
+                DialogKind.GENERAL_QUESTION,
+                question.text,
+                tuple(question.choices or ()),
+                now + timedelta(seconds=self.settings.question_timeout_s),
+                {"question": question.id},
+            ),
+            now,
+        )
+        return True
+
+    def _motivated_behavior(self) -> str:
+        if self._motivation is None:
+            return "wait"
+        return self.deps.motivation.behavior(self._motivation)
+
+    def _dominant(self) -> str | None:
+        if self._motivation is None:
+            return None
+        return self.deps.motivation.dominant(self._motivation)
+
+    # ------------------------------------------------------------------ agenda
+
+    def _due_items(self, now: datetime) -> list[DueItem]:
+        agenda = self.deps.agenda
+        if agenda is None:
+            return []
+        result = self._agenda_call("due", now, self._ready_user())
+        return list(result or [])
+
+    def _run_agenda_item(self, item: DueItem, now: datetime) -> None:
+        if item.kind == "reminder":
+            started = self._start(
+                "notification", "agenda", "agenda", now, f"reminder {item.item_id}",
+                args={"text": item.text or ""}, agenda_item=item,
+            )
+        else:
+            started = self._start(
+                item.activity or "wait", "agenda", "agenda", now, f"event {item.item_id}", agenda_item=item
+            )
+        if not started and self.deps.agenda is not None:
+            self._agenda_call("delivered", item, now)
+
+    def _agenda_call(self, method: str, *args: Any) -> Any:
+        try:
+            return getattr(self.deps.agenda, method)(*args)
+        except Exception as error:  # the agenda's database may fail; the loop goes on
+            log.exception("agenda.%s failed", method)
+            self.deps.report_error("agenda", f"{method}: {error}")
+            return None
+
+    # ------------------------------------------------------------------ memory helpers
+
+    def _profiles_call(self, method: str, *args: Any, **kwargs: Any) -> Any:
+        if self.deps.profiles is None:
+            return None
+        return self.deps.profiles.call(method, *args, **kwargs)
+
+    def _note_interaction(self, channel: str, answered: bool, now: datetime) -> None:
+        if self._session is not None:
+            channel = "screen" if channel == "screen" else "voice"
+            self._profiles_call("record_interaction", self._session.user_id, channel, answered, now)
+
+    def _note_initiative(self, took: bool, now: datetime) -> None:
+        if self._session is not None:
+            self._profiles_call("record_initiative", self._session.user_id, took, now)
+
+    # ------------------------------------------------------------------ output
+
+    def _decide(
+        self,
+        action: DecisionAction,
+        activity: str | None,
+        reason: str,
+        chosen_by: ChosenBy | None,
+        detail: str | None,
+        now: datetime,
+    ) -> None:
+        self.counters.by_reason[reason] = self.counters.by_reason.get(reason, 0) + 1
+        self._decisions.append(
+            Decision(
+                tick=self._tick,
+                time=iso(now),
+                action=action,
+                activity=activity,
+                manager=manager_of(activity).value if activity in ACTIVITIES else None,
+                reason=reason,  # type: ignore[arg-type]
+                chosen_by=chosen_by,
+                detail=detail,
+            )
+        )
+
+    def _activity_state(self, running: Running | None) -> ActivityState | None:
+        if running is None:
+            return None
+        manager = self.managers[running.manager]
+        activity = manager.activity
+        return ActivityState(
+            name=running.name,
+            manager=running.manager.value,
+            status="paused" if running.paused else "running",
+            state=activity.state_path if activity is not None else "",
+        )
+
+    def build_state(self, now: datetime) -> DmsState:
+        """The DmsState for ``now`` from what the controller holds."""
+        snapshot = self._motivation
+        motivation = (
+            MotivationSnapshot(**self.deps.motivation.snapshot(snapshot))
+            if snapshot is not None
+            else MotivationSnapshot(dominant=None, drives={}, motivations={}, wellbeing=100.0)
+        )
+        session = self._session
+        user = (
+            UserState(id=session.user_id, ready=self._ready_user() == session.user_id)
+            if session is not None
+            else None
+        )
+        return DmsState(
+            robot=self.robot_id,
+            tick=self._tick,
+            time=iso(now),
+            mode=session.mode if session is not None else "motivation",
+            user=user,
+            activity=self._activity_state(self.current),
+            suspended=self._activity_state(self.suspended),
+            motivation=motivation,
+            inputs=dict(self._snapshot.status) if self._snapshot else {},
+        )
+
+    @property
+    def state(self) -> DmsState | None:
+        """The state after the last tick."""
+        return self._state
+
+    @property
+    def running_activity(self) -> Any:
+        """The running activity object (for the behavior queryable), or None."""
+        if self.current is None:
+            return None
+        return self.managers[self.current.manager].activity

@@ -1,0 +1,243 @@
+"""``dms run``: the controller stack on a real clock, over Zenoh, until a signal.
+
+The loop ticks at 2 Hz against monotonic deadlines and at once when an urgent input
+(a touch, a request, a screen choice, speech) arrives. Each tick's decisions are
+published on ``dms/decision`` and printed, then the state on ``dms/state``. The
+``alive/dms`` token is declared only once everything is ready. SIGINT and SIGTERM
+stop the running activity, flush the store and exit 0; SIGHUP reloads the rules.
+"""
+
+from __future__ import annotations
+
+import logging
+import random
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable
+from datetime import datetime
+from types import FrameType
+from typing import Any
+
+from dms import keys
+from dms.assembly import Stack, build_stack
+from dms.bus import ZenohBus, make_config
+from dms.clock import RealClock, Ticker, iso
+from dms.config import Settings
+from dms.controller import TickRecord
+from dms.errors import DmsError
+from dms.inputs import InputRejected, parse_input
+from dms.messages import Decision, ErrorReport, RobotCommand, RobotFeedback
+from dms.ports import RobotPort
+from dms.robot_link import ZenohRobot
+
+log = logging.getLogger(__name__)
+
+
+def format_decision(decision: Decision) -> str:
+    """One console line per decision: time, action, activity, reason, who, why."""
+    who = f" by {decision.chosen_by}" if decision.chosen_by else ""
+    what = f" {decision.activity}" if decision.activity else ""
+    detail = f" ({decision.detail})" if decision.detail else ""
+    return f"{decision.time[11:23]} {decision.action:<8}{what} [{decision.reason}{who}]{detail}"
+
+
+class Daemon:
+    """The live daemon: a controller stack, a Zenoh bus and a ticking loop."""
+
+    def __init__(self, settings: Settings, print_decisions: bool = True) -> None:
+        self.settings = settings
+        self.clock = RealClock()
+        self.print_decisions = print_decisions
+        self.bus = ZenohBus(
+            settings.robot_id,
+            make_config(
+                settings.zenoh.listen, settings.zenoh.connect, settings.zenoh.config_file
+            ),
+        )
+        self.ticker = Ticker(self.clock, settings.controller.tick_period_s)
+        self._lock = threading.Lock()
+        self._reload = threading.Event()
+        self.errors_published = 0
+        robot: RobotPort
+        self.zenoh_robot: ZenohRobot | None = None
+        if settings.robot == "zenoh":
+            self.zenoh_robot = ZenohRobot(self._publish_command)
+            robot = self.zenoh_robot
+        else:
+            from sim.robot import SimRobot
+
+            robot = SimRobot(rng_seed=settings.seed or 0)
+        self.stack: Stack = build_stack(
+            settings,
+            robot,
+            on_command=self._publish_command,
+            report_error=self.report_error,
+            rng=random.Random(settings.seed),
+        )
+
+    # -------------------------------------------------------------- bus callbacks
+
+    def _publish_command(self, command: RobotCommand) -> None:
+        self.bus.publish(keys.ROBOT_COMMAND, command.model_dump(mode="json"))
+
+    def report_error(self, key: str, error: str) -> None:
+        """Publish one problem on ``dms/errors`` (thread-safe)."""
+        self.errors_published += 1
+        report = ErrorReport(key=key, error=error, time=iso(self.clock.now()))
+        log.warning("%s: %s", key, error)
+        self.bus.publish(keys.DMS_ERRORS, report.model_dump(mode="json"))
+
+    def on_input(self, key: str, raw: bytes) -> None:
+        """Validate one input (Zenoh thread); wake the loop for urgent ones."""
+        try:
+            message = parse_input(key, raw)
+        except InputRejected as error:
+            self.stack.inputs.reject()
+            self.report_error(key, str(error))
+            return
+        if isinstance(message, RobotFeedback):
+            if self.zenoh_robot is not None:
+                self.zenoh_robot.feed(message)
+            return
+        self.stack.inputs.accept(key, message, self.clock.monotonic())
+        if key in keys.URGENT_INPUTS:
+            self.ticker.wake()
+
+    def on_liveliness(self, key: str, alive: bool) -> None:
+        if key != "dms":
+            self.stack.inputs.liveliness(key, alive)
+
+    def _query_state(self, _key: str, _payload: bytes | None) -> tuple[bool, Any]:
+        state = self.stack.controller.state
+        if state is None:
+            return False, {"error": "no tick yet"}
+        return True, state.model_dump(mode="json")
+
+    def _query_users(self, key: str, _payload: bytes | None) -> tuple[bool, Any]:
+        store = self.stack.store
+        if store is None:
+            return False, {"error": "no profile store"}
+        user_id = key[len(keys.USERS_PREFIX) :]
+        try:
+            if user_id in ("*", "**", ""):
+                return True, {"users": store.list_ids()}
+            return True, store.export(user_id)
+        except DmsError as error:
+            return False, {"error": str(error)}
+
+    def _query_agenda(self, key: str, payload: bytes | None) -> tuple[bool, Any]:
+        agenda = self.stack.agenda
+        if agenda is None:
+            return False, {"error": "no agenda"}
+        from agenda.zenoh_api import handle_query
+
+        with self._lock:
+            return handle_query(agenda, key[len(keys.AGENDA_PREFIX) :], payload, self.clock.now())
+
+    def _query_behavior(self, _key: str, _payload: bytes | None) -> tuple[bool, Any]:
+        with self._lock:
+            controller = self.stack.controller
+            activity = controller.running_activity
+            if activity is None:
+                return True, {"activity": None}
+            return True, {"activity": controller.current.name if controller.current else None,
+                          "structure": activity.structure()}
+
+    # -------------------------------------------------------------- the loop
+
+    def start(self) -> None:
+        """Open Zenoh, run one tick so there is a state, then declare ``alive/dms``."""
+        self.bus.start(
+            self.on_input,
+            self.on_liveliness,
+            {
+                keys.DMS_STATE: self._query_state,
+                keys.USERS_PREFIX: self._query_users,
+                keys.AGENDA_PREFIX: self._query_agenda,
+                keys.DMS_BEHAVIOR: self._query_behavior,
+            },
+        )
+        agenda = self.stack.agenda
+        if agenda is not None:
+            for item in agenda.recover(self.clock.now()):
+                log.info("agenda item %s fell due while the daemon was down", item.item_id)
+        self._run_tick(urgent=False)
+        self.bus.declare_alive()
+
+    def _run_tick(self, urgent: bool) -> TickRecord:
+        if self._reload.is_set():
+            self._reload.clear()
+            self.stack.controller.reload_rules()
+        with self._lock:
+            record = self.stack.controller.tick(self.clock.now(), self.clock.monotonic(), urgent)
+        self._publish(record)
+        return record
+
+    def _publish(self, record: TickRecord) -> None:
+        for decision in record.decisions:
+            self.bus.publish(keys.DMS_DECISION, decision.model_dump(mode="json"))
+            if self.print_decisions:
+                print(format_decision(decision), flush=True)
+        self.bus.publish(keys.DMS_STATE, record.state.model_dump(mode="json"))
+
+    def loop(self) -> None:
+        """Tick until :meth:`stop`."""
+        for _timing, urgent in self.ticker:
+            self._run_tick(urgent)
+
+    def stop(self) -> None:
+        self.ticker.stop()
+
+    def request_reload(self) -> None:
+        self._reload.set()
+        self.ticker.wake()
+
+    def close(self) -> None:
+        """Stop the running activity, flush the store, leave Zenoh."""
+        with self._lock:
+            record = self.stack.controller.shutdown(self.clock.now())
+        self._publish(record)
+        self.stack.close()
+        self.bus.close()
+
+
+def run_daemon(
+    settings: Settings, visitor: str | None = None, print_decisions: bool = True
+) -> int:
+    """Run until SIGINT/SIGTERM; return the exit code."""
+    logging.basicConfig(
+        level=logging.WARNING, format="%(asctime)s %(levelname)s %(name)s: %(message)s"
+    )
+    daemon = Daemon(settings, print_decisions=print_decisions)
+
+    def on_stop(_signum: int, _frame: FrameType | None) -> None:
+        daemon.stop()
+
+    def on_hup(_signum: int, _frame: FrameType | None) -> None:
+        daemon.request_reload()
+
+    signal.signal(signal.SIGINT, on_stop)
+    signal.signal(signal.SIGTERM, on_stop)
+    signal.signal(signal.SIGHUP, on_hup)
+    stop_visitor: Callable[[], None] | None = None
+    try:
+        daemon.start()
+        print(
+            f"dms: robot {settings.robot_id} ready on {', '.join(settings.zenoh.listen)} "
+            f"(alive/dms declared); Ctrl-C stops",
+            file=sys.stderr,
+            flush=True,
+        )
+        if visitor is not None:
+            from sim.visitor import start_visitor
+
+            stop_visitor = start_visitor(visitor, settings)
+        daemon.loop()
+    finally:
+        if stop_visitor is not None:
+            stop_visitor()
+        daemon.close()
+    return 0
+

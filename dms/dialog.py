@@ -1,0 +1,133 @@
+"""Short spoken dialogs the controller holds itself, outside any activity.
+
+Three of the paper's steps are questions put by the decision-making system, not by an
+activity: "continue or stop?" after a touch on the right shoulder, "how much did you
+like it?" after an activity (step 7) and general questions that fill the profile
+(step 8). A :class:`Dialog` asks once by voice and on the screen, takes the first
+answer that arrives by speech or touch screen, and gives up after its timeout.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from datetime import datetime, timedelta
+from enum import StrEnum
+from typing import Any
+
+from dms.expression import ExpressionArbiter, Priority
+
+SOURCE = "dms"
+"""The expression source of the controller's own dialogs."""
+
+
+class DialogKind(StrEnum):
+    """Why the controller is asking."""
+
+    CONFIRM_CANCEL = "confirm_cancel"
+    FEEDBACK = "feedback"
+    GENERAL_QUESTION = "general_question"
+
+
+@dataclass
+class Dialog:
+    """One question waiting for an answer."""
+
+    kind: DialogKind
+    question: str
+    choices: tuple[str, ...]
+    deadline: datetime
+    context: dict[str, Any] = field(default_factory=dict)
+    answer: str | None = None
+    channel: str | None = None
+    """"voice" or "screen": how the answer came."""
+
+    def ask(self, expression: ExpressionArbiter, now: datetime) -> None:
+        expression.request(
+            SOURCE, "speech", "say", {"text": self.question}, now, priority=Priority.HIGH
+        )
+        if self.choices:
+            expression.request(
+                SOURCE,
+                "screen",
+                "show",
+                {"text": self.question, "choices": list(self.choices)},
+                now,
+                priority=Priority.HIGH,
+            )
+
+    def offer(self, text: str, channel: str) -> bool:
+        """Take ``text`` as the answer if it is one; True if taken."""
+        if self.answer is not None:
+            return False
+        if self.kind is DialogKind.FEEDBACK:
+            text = normalize_feedback(text)
+        answer = match_choice(text, self.choices) if self.choices else text.strip()
+        if not answer:
+            return False
+        self.answer, self.channel = answer, channel
+        return True
+
+    def expired(self, now: datetime) -> bool:
+        return self.answer is None and now >= self.deadline
+
+
+def match_choice(text: str, choices: tuple[str, ...]) -> str | None:
+    """The choice ``text`` names, as a whole word or the whole text, case-insensitive."""
+    spoken = text.strip().lower()
+    for choice in choices:
+        if spoken == choice.lower():
+            return choice
+    words = set(re.findall(r"[\w']+", spoken))
+    for choice in choices:
+        if choice.lower() in words:
+            return choice
+    return None
+
+
+CONFIRM_CHOICES = ("stop", "continue", "yes", "no")
+CONFIRM_STOP = frozenset({"stop", "yes"})
+"""Answers to "Do you want to stop?" that stop; "continue" and "no" go on."""
+
+FEEDBACK_CHOICES = ("1", "2", "3", "4", "5")
+FEEDBACK_WORDS = {
+    "1": 0.0,
+    "2": 0.25,
+    "3": 0.5,
+    "4": 0.75,
+    "5": 1.0,
+}
+
+
+def confirm_dialog(activity: str, now: datetime, timeout_s: float) -> Dialog:
+    return Dialog(
+        DialogKind.CONFIRM_CANCEL,
+        f"Do you want to stop the {activity.replace('_', ' ')}? Say stop or continue.",
+        CONFIRM_CHOICES,
+        now + timedelta(seconds=timeout_s),
+        {"activity": activity},
+    )
+
+
+def feedback_dialog(activity: str, now: datetime, timeout_s: float) -> Dialog:
+    return Dialog(
+        DialogKind.FEEDBACK,
+        f"How much did you like the {activity.replace('_', ' ')}, from one to five?",
+        FEEDBACK_CHOICES,
+        now + timedelta(seconds=timeout_s),
+        {"activity": activity},
+    )
+
+
+_NUMBER_WORDS = {"one": "1", "two": "2", "three": "3", "four": "4", "five": "5"}
+
+
+def feedback_score(answer: str) -> float | None:
+    """A 0..1 score from a 1-5 answer (digit or word)."""
+    key = _NUMBER_WORDS.get(answer.strip().lower(), answer.strip())
+    return FEEDBACK_WORDS.get(key)
+
+
+def normalize_feedback(text: str) -> str:
+    """Turn number words into digits so "four" matches the choice "4"."""
+    return " ".join(_NUMBER_WORDS.get(word, word) for word in text.lower().split())

@@ -1,0 +1,198 @@
+"""Inputs: validation of what other processes publish, and their freshness.
+
+:func:`parse_input` turns one raw payload into its message or raises
+:class:`InputRejected` with a one-line reason. :class:`InputBoard` holds the latest
+value of each state-like input and queues event inputs; it is written from the bus's
+threads and read by the decision loop, so it is the only place with a lock.
+
+Each input is *ok*, *stale* (not refreshed within its configured time) or *missing*
+(never received, or its module's liveliness token went away). Stale and missing
+inputs are not considered in decisions.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+from collections import deque
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from pydantic import BaseModel, ValidationError
+
+from dms import keys
+from dms.errors import DmsError
+from dms.messages import INBOUND_BY_KEY, ProfileParams
+
+MAX_PAYLOAD_BYTES = 64 * 1024
+"""Larger payloads are rejected before parsing: nothing legitimate is this big."""
+
+MAX_EVENTS_QUEUED = 256
+"""Event inputs beyond this many between two ticks are dropped (oldest first) and counted."""
+
+InputStatus = Literal["ok", "stale", "missing"]
+
+
+class InputRejected(DmsError):
+    """A payload on an input key was not accepted; the message says why."""
+
+
+def parse_input(key: str, raw: bytes) -> BaseModel:
+    """Validate ``raw`` published on input ``key`` (relative); raise InputRejected."""
+    model = INBOUND_BY_KEY.get(key)
+    if model is None:
+        raise InputRejected(f"{key} is not an input key")
+    if len(raw) > MAX_PAYLOAD_BYTES:
+        raise InputRejected(f"payload of {len(raw)} bytes exceeds {MAX_PAYLOAD_BYTES}")
+    try:
+        payload = json.loads(raw)
+    except RecursionError:
+        raise InputRejected("JSON nested too deeply") from None
+    except (UnicodeDecodeError, ValueError) as error:
+        raise InputRejected(f"not JSON: {error}") from None
+    if not isinstance(payload, dict):
+        raise InputRejected(f"expected a JSON object, got {type(payload).__name__}")
+    try:
+        if model is ProfileParams:
+            return ProfileParams.from_payload(payload)
+        return model.model_validate(payload)
+    except ValidationError as error:
+        raise InputRejected(_first_error(error)) from None
+    except RecursionError:
+        raise InputRejected("JSON nested too deeply") from None
+
+
+def _first_error(error: ValidationError) -> str:
+    first = error.errors(include_url=False)[0]
+    where = ".".join(str(part) for part in first["loc"] if part != "values") or "payload"
+    more = f" (and {error.error_count() - 1} more)" if error.error_count() > 1 else ""
+    return f"{where}: {first['msg']}{more}"
+
+
+@dataclass(slots=True)
+class _Slot:
+    value: BaseModel | None = None
+    updated: float | None = None
+    token_seen: bool = False
+    token_alive: bool = False
+
+
+@dataclass(frozen=True, slots=True)
+class InputEvent:
+    """One event input (touch, speech, screen, request, robot feedback), in arrival order."""
+
+    key: str
+    message: BaseModel
+    received: float
+
+
+@dataclass(frozen=True, slots=True)
+class InputSnapshot:
+    """What the decision loop sees at one tick."""
+
+    values: Mapping[str, BaseModel]
+    """Latest value of each state input that is ok (stale and missing ones are absent)."""
+    status: Mapping[str, InputStatus]
+    events: tuple[InputEvent, ...]
+    robot_params: Mapping[str, Any]
+    env_params: Mapping[str, Any]
+
+
+@dataclass
+class InputCounters:
+    """Counts for metrics and the benchmarks."""
+
+    accepted: int = 0
+    rejected: int = 0
+    dropped_events: int = 0
+    by_key: dict[str, int] = field(default_factory=dict)
+
+
+class InputBoard:
+    """The latest inputs, their freshness, and the queue of events for the next tick."""
+
+    def __init__(self, stale_after_s: Mapping[str, float | None] | None = None) -> None:
+        defaults: dict[str, float | None] = {
+            keys.PERCEPTION_USER: 5.0,
+            keys.PARAMS_ROBOT: None,
+            keys.PARAMS_ENV: None,
+        }
+        defaults.update(stale_after_s or {})
+        self._stale_after = defaults
+        self._lock = threading.Lock()
+        self._slots: dict[str, _Slot] = {key: _Slot() for key in keys.INPUT_KEYS}
+        self._events: deque[InputEvent] = deque(maxlen=MAX_EVENTS_QUEUED)
+        self._robot_params: dict[str, Any] = {}
+        self._env_params: dict[str, Any] = {}
+        self.counters = InputCounters()
+
+    def accept(self, key: str, message: BaseModel, received: float) -> None:
+        """Record a validated message (called from the bus's threads)."""
+        with self._lock:
+            self.counters.accepted += 1
+            self.counters.by_key[key] = self.counters.by_key.get(key, 0) + 1
+            slot = self._slots[key]
+            slot.value, slot.updated = message, received
+            if isinstance(message, ProfileParams):
+                target = self._robot_params if key == keys.PARAMS_ROBOT else self._env_params
+                target.update(message.values)
+            if key in keys.EVENT_INPUTS:
+                if len(self._events) == self._events.maxlen:
+                    self.counters.dropped_events += 1
+                self._events.append(InputEvent(key, message, received))
+
+    def reject(self) -> None:
+        with self._lock:
+            self.counters.rejected += 1
+
+    def liveliness(self, key: str, alive: bool) -> None:
+        """A module's ``alive/<key>`` token appeared or went away."""
+        with self._lock:
+            slot = self._slots.get(key)
+            if slot is None:
+                return
+            slot.token_seen = True
+            slot.token_alive = alive
+            if not alive:
+                # What it said before it went away no longer holds.
+                slot.value = None
+                if key == keys.PARAMS_ROBOT:
+                    self._robot_params.clear()
+                elif key == keys.PARAMS_ENV:
+                    self._env_params.clear()
+
+    def status_of(self, key: str, monotonic_now: float) -> InputStatus:
+        with self._lock:
+            return self._status(key, self._slots[key], monotonic_now)
+
+    def _status(self, key: str, slot: _Slot, monotonic_now: float) -> InputStatus:
+        if slot.token_seen and not slot.token_alive:
+            return "missing"
+        if key in keys.EVENT_INPUTS:
+            return "ok"
+        if slot.value is None or slot.updated is None:
+            return "missing"
+        limit = self._stale_after.get(key)
+        if limit is not None and monotonic_now - slot.updated > limit:
+            return "stale"
+        return "ok"
+
+    def take(self, monotonic_now: float) -> InputSnapshot:
+        """The inputs for one tick; event inputs are handed over once."""
+        with self._lock:
+            status: dict[str, InputStatus] = {}
+            values: dict[str, BaseModel] = {}
+            for key, slot in self._slots.items():
+                if key in keys.EVENT_INPUTS and not slot.token_seen and slot.value is None:
+                    continue  # an event input nobody has declared or used: not worth a line
+                status[key] = self._status(key, slot, monotonic_now)
+                if key in keys.STATE_INPUTS and status[key] == "ok" and slot.value is not None:
+                    values[key] = slot.value
+            events = tuple(
+                event for event in self._events if status.get(event.key, "ok") != "missing"
+            )
+            self._events.clear()
+            robot = dict(self._robot_params) if keys.PARAMS_ROBOT in values else {}
+            env = dict(self._env_params) if keys.PARAMS_ENV in values else {}
+        return InputSnapshot(values, status, events, robot, env)

@@ -1,0 +1,81 @@
+"""The controller's view of the profile store: cached snapshots and retried writes.
+
+The decision loop must keep deciding when the database has a problem: this wrapper
+keeps the last snapshot of each profile it loaded, reports every database error once
+per failure through ``report`` (the daemon publishes it on ``dms/errors``), queues the
+writes that failed and retries them in order every few seconds.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import deque
+from collections.abc import Callable
+from datetime import datetime
+from typing import Any
+
+from memory import Profile, ProfileError, ProfileStore, StoreUnavailable
+
+log = logging.getLogger(__name__)
+
+RETRY_EVERY_S = 5.0
+
+
+class ProfileService:
+    """Profile loads and writes for the controller, resilient to database outages."""
+
+    def __init__(self, store: ProfileStore, report: Callable[[str, str], None]) -> None:
+        self.store = store
+        self._report = report
+        self._cache: dict[str, Profile] = {}
+        self._outbox: deque[tuple[str, tuple[Any, ...], dict[str, Any]]] = deque(maxlen=10_000)
+        self._last_retry: datetime | None = None
+
+    def load(self, user_id: str, now: datetime) -> Profile | None:
+        """Load or create ``user_id``'s profile; the cached one if the store is down."""
+        try:
+            profile = self.store.get_or_create(user_id, now)
+        except StoreUnavailable as error:
+            self._report("memory", f"cannot load profile {user_id}: {error}")
+            return self._cache.get(user_id)
+        self._cache[user_id] = profile
+        return profile
+
+    def cached(self, user_id: str) -> Profile | None:
+        return self._cache.get(user_id)
+
+    def call(self, method: str, *args: Any, **kwargs: Any) -> Any:
+        """Call a store method; on an outage queue it for retry and return None."""
+        try:
+            result = getattr(self.store, method)(*args, **kwargs)
+        except StoreUnavailable as error:
+            self._report("memory", f"{method} failed, will retry: {error}")
+            self._outbox.append((method, args, kwargs))
+            return None
+        except ProfileError as error:
+            self._report("memory", f"{method} refused: {error}")
+            return None
+        if isinstance(result, Profile):
+            self._cache[result.user_id] = result
+        return result
+
+    def retry(self, now: datetime) -> None:
+        """Replay queued writes, oldest first, at most every RETRY_EVERY_S."""
+        if not self._outbox:
+            return
+        if self._last_retry and (now - self._last_retry).total_seconds() < RETRY_EVERY_S:
+            return
+        self._last_retry = now
+        while self._outbox:
+            method, args, kwargs = self._outbox[0]
+            try:
+                getattr(self.store, method)(*args, **kwargs)
+            except StoreUnavailable:
+                return
+            except ProfileError as error:
+                log.warning("dropping a queued %s: %s", method, error)
+            self._outbox.popleft()
+
+    @property
+    def pending_writes(self) -> int:
+        return len(self._outbox)
