@@ -23,11 +23,12 @@ from typing import Any
 from dms import keys
 from dms.assembly import Stack, build_stack
 from dms.bus import ZenohBus, make_config
-from dms.clock import RealClock, Ticker, iso
+from dms.clock import Clock, RealClock, Ticker, iso
 from dms.config import Settings
 from dms.controller import TickRecord
 from dms.errors import DmsError
 from dms.inputs import InputRejected, parse_input
+from dms.local_bus import InMemoryBus
 from dms.messages import Decision, ErrorReport, RobotCommand, RobotFeedback
 from dms.ports import RobotPort
 from dms.robot_link import ZenohRobot
@@ -46,11 +47,17 @@ def format_decision(decision: Decision) -> str:
 class Daemon:
     """The live daemon: a controller stack, a Zenoh bus and a ticking loop."""
 
-    def __init__(self, settings: Settings, print_decisions: bool = True) -> None:
+    def __init__(
+        self,
+        settings: Settings,
+        print_decisions: bool = True,
+        bus: ZenohBus | InMemoryBus | None = None,
+        clock: Clock | None = None,
+    ) -> None:
         self.settings = settings
-        self.clock = RealClock()
+        self.clock: Clock = clock or RealClock()
         self.print_decisions = print_decisions
-        self.bus = ZenohBus(
+        self.bus = bus or ZenohBus(
             settings.robot_id,
             make_config(
                 settings.zenoh.listen, settings.zenoh.connect, settings.zenoh.config_file

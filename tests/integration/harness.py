@@ -1,0 +1,171 @@
+"""A real daemon in a subprocess and a real Zenoh session beside it, on 127.0.0.1.
+
+The test session plays perception and a caregiver's app. Every wait is for a message
+or a liveliness token, with a deadline; nothing sleeps and hopes.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import zenoh
+
+
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def client_session(port: int) -> zenoh.Session:
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"peer"')
+    conf.insert_json5("connect/endpoints", json.dumps([f"tcp/127.0.0.1:{port}"]))
+    conf.insert_json5("listen/endpoints", "[]")
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    return zenoh.open(conf)
+
+
+class Collector:
+    """Keeps every JSON message on one key expression; waits for one that matches."""
+
+    def __init__(self, session: zenoh.Session, key_expr: str) -> None:
+        self.messages: list[dict[str, Any]] = []
+        self._cond = threading.Condition()
+        self._sub = session.declare_subscriber(key_expr, self._on)
+
+    def _on(self, sample: zenoh.Sample) -> None:
+        with self._cond:
+            self.messages.append(json.loads(sample.payload.to_bytes()))
+            self._cond.notify_all()
+
+    def wait_for(
+        self, predicate: Callable[[dict[str, Any]], bool], timeout: float = 10.0, start: int = 0
+    ) -> dict[str, Any]:
+        """The first message from index ``start`` on that satisfies ``predicate``."""
+        with self._cond:
+            found: list[dict[str, Any]] = []
+
+            def ready() -> bool:
+                found[:] = [m for m in self.messages[start:] if predicate(m)][:1]
+                return bool(found)
+
+            if not self._cond.wait_for(ready, timeout):
+                tail = self.messages[-5:]
+                raise AssertionError(f"no matching message within {timeout}s; last: {tail}")
+            return found[0]
+
+    def wait_count(self, n: int, timeout: float = 10.0) -> list[dict[str, Any]]:
+        with self._cond:
+            if not self._cond.wait_for(lambda: len(self.messages) >= n, timeout):
+                raise AssertionError(f"{len(self.messages)} of {n} messages within {timeout}s")
+            return list(self.messages)
+
+    def mark(self) -> int:
+        with self._cond:
+            return len(self.messages)
+
+
+def wait_token(session: zenoh.Session, key: str, present: bool, timeout: float = 20.0) -> None:
+    """Wait until liveliness token ``key`` is (or is no longer) declared."""
+    event = threading.Event()
+    kind = zenoh.SampleKind.PUT if present else zenoh.SampleKind.DELETE
+
+    def on_token(sample: zenoh.Sample) -> None:
+        if sample.kind == kind:
+            event.set()
+
+    sub = session.liveliness().declare_subscriber(key, on_token, history=present)
+    try:
+        assert event.wait(timeout), f"token {key} {'never appeared' if present else 'stayed'}"
+    finally:
+        sub.undeclare()
+
+
+class DaemonProcess:
+    """``dms run`` in a subprocess on a free loopback port and a SQLite file."""
+
+    def __init__(self, tmp: Path, port: int | None = None, extra_config: str = "") -> None:
+        self.port = port or free_port()
+        self.db = f"sqlite:///{tmp / 'dms.db'}"
+        self.config = tmp / "dms.toml"
+        self.config.write_text(
+            'seed = 3\n[inputs]\nstale_after_s = { "perception/user" = 30.0 }\n'
+            "[controller]\nsession_questions = 0\nquestion_every = 0\n"
+            "feedback_probability = 0.0\n" + extra_config
+        )
+        self.proc: subprocess.Popen[str] | None = None
+        self.log = tmp / "daemon.log"
+
+    def start(self, session: zenoh.Session) -> None:
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        self._log_file = self.log.open("w")
+        self.proc = subprocess.Popen(
+            [
+                sys.executable, "-m", "dms.cli", "run", "--config", str(self.config),
+                "--db", self.db, "--listen", f"tcp/127.0.0.1:{self.port}",
+            ],
+            stdout=self._log_file,
+            stderr=subprocess.STDOUT,
+            text=True,
+            env=env,
+        )
+        try:
+            wait_token(session, "robots/mini/alive/dms", present=True)
+        except AssertionError:
+            self.proc.kill()
+            raise AssertionError(f"daemon never became ready:\n{self.log.read_text()}") from None
+
+    def terminate(self, timeout: float = 20.0) -> int:
+        assert self.proc is not None
+        self.proc.send_signal(signal.SIGTERM)
+        code = self.proc.wait(timeout)
+        self._log_file.close()
+        return code
+
+    def kill(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait(10)
+
+
+@contextmanager
+def running_daemon(tmp: Path, extra_config: str = "") -> Iterator[tuple[DaemonProcess, zenoh.Session]]:
+    daemon = DaemonProcess(tmp, extra_config=extra_config)
+    session = client_session(daemon.port)
+    try:
+        daemon.start(session)
+        yield daemon, session
+    finally:
+        daemon.kill()
+        session.close()
+
+
+def put(session: zenoh.Session, key: str, payload: dict[str, Any] | bytes) -> None:
+    data = payload if isinstance(payload, bytes) else json.dumps(payload).encode()
+    session.put(f"robots/mini/{key}", data, encoding=zenoh.Encoding.APPLICATION_JSON)
+
+
+def query(session: zenoh.Session, key: str, payload: dict[str, Any] | None = None) -> list[tuple[bool, Any]]:
+    replies = session.get(
+        f"robots/mini/{key}",
+        payload=json.dumps(payload).encode() if payload is not None else None,
+        timeout=10.0,
+    )
+    out: list[tuple[bool, Any]] = []
+    for reply in replies:
+        if reply.ok is not None:
+            out.append((True, json.loads(reply.ok.payload.to_bytes())))
+        else:
+            out.append((False, json.loads(reply.err.payload.to_bytes())))
+    return out
