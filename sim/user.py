@@ -1,0 +1,348 @@
+"""A simulated user: a persona reacting to what the robot says, shows and decides.
+
+The user lives on whatever clock drives it: every method takes ``now``. It is told
+of each robot command (:meth:`SimulatedUser.on_command`: speech ``say``, screen
+``show`` with choices, ...) and each decision (:meth:`on_decision`), and answers with
+inputs that fall due later (:meth:`due`): an answer by voice or on the screen after a
+delay (sometimes misrecognized, sometimes never given), a menu choice according to
+its hidden preferences, an activity asked for by name, a touch on the right shoulder
+and "stop" in an activity it dislikes. :meth:`perception` is what the perception
+module would publish about it. The same object drives the in-process simulation
+(``sim.harness``) and the Zenoh visitor (``sim.visitor``).
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import random
+import re
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from datetime import datetime, timedelta
+
+from pydantic import BaseModel
+
+from dms import keys
+from dms.activity_names import ACTIVITIES, ENTERTAINMENT_ACTIVITIES
+from dms.messages import Decision, RobotCommand, ScreenChoice, Speech, Touch, UserPerception
+from sim.persona import Persona, Span
+
+Output = tuple[str, BaseModel]
+"""An input for the daemon: (key relative to the robot, message)."""
+
+CONFIRM_WORDS = frozenset({"stop", "continue", "yes", "no"})
+FEEDBACK_WORDS = ("1", "2", "3", "4", "5")
+REQUEST_PHRASES = ("let's do the {}", "I would like the {}", "can we do the {}, please?")
+
+
+@dataclass
+class UserStats:
+    """What the user did: the study's failure counts come from here."""
+
+    questions_heard: int = 0
+    answers: int = 0
+    voice_answers: int = 0
+    screen_answers: int = 0
+    misrecognized: int = 0
+    """Utterances sent garbled (the speech recognizer got them wrong)."""
+    unanswered: int = 0
+    touches: int = 0
+    requests_by_name: int = 0
+    menu_choices: int = 0
+
+
+@dataclass
+class _Question:
+    text: str
+    asked: datetime
+    choices: tuple[str, ...] = ()
+    answered: bool = False
+    retried: bool = False
+
+
+@dataclass(order=True)
+class _Pending:
+    due: datetime
+    order: int
+    action: Callable[[datetime], list[Output]] = field(compare=False)
+
+
+def _draw(rng: random.Random, span: Span) -> float:
+    return span.min if span.max <= span.min else rng.uniform(span.min, span.max)
+
+
+class SimulatedUser:
+    """One persona in front of (or away from) the robot."""
+
+    def __init__(self, persona: Persona, rng: random.Random, user_id: str | None = None) -> None:
+        self.persona = persona
+        self.user_id = user_id or persona.id
+        self.rng = rng
+        self.stats = UserStats()
+        self.present = False
+        self.ready = False
+        self.activity: str | None = None
+        """The activity the user believes runs (from the robot's decisions)."""
+        self.last_activity: str | None = None
+        self._activity_serial = 0
+        self._wants_stop: str | None = None
+        self._question: _Question | None = None
+        self._queue: list[_Pending] = []
+        self._order = itertools.count()
+        self.touches_left = persona.patience.max_touches
+
+    # ------------------------------------------------------------ presence
+
+    def arrive(self, now: datetime) -> None:
+        """Sit down in front of the robot; ready to interact after a short while."""
+        self.present = True
+        self.ready = False
+        self._schedule(
+            now + timedelta(seconds=_draw(self.rng, self.persona.arrive_after_s)), self._sit
+        )
+
+    def _sit(self, now: datetime) -> list[Output]:
+        if self.present:
+            self.ready = True
+            return [(keys.PERCEPTION_USER, self.perception())]
+        return []
+
+    def leave(self, now: datetime) -> None:
+        """Get up and go: every pending answer is forgotten."""
+        self.present = self.ready = False
+        self._queue.clear()
+        self._question = None
+        self.activity = None
+        self._wants_stop = None
+
+    def perception(self) -> UserPerception:
+        """What a perception module publishes about this user now."""
+        if not self.present:
+            return UserPerception(present=False, user_id=None, ready=False, engagement=None)
+        engagement = self.persona.liking(self.activity) if self.activity else 0.7
+        return UserPerception(
+            present=True, user_id=self.user_id, ready=self.ready, engagement=round(engagement, 2)
+        )
+
+    # ------------------------------------------------------------ the queue
+
+    def _schedule(self, when: datetime, action: Callable[[datetime], list[Output]]) -> None:
+        heapq.heappush(self._queue, _Pending(when, next(self._order), action))
+
+    def next_due(self) -> datetime | None:
+        """When the user will next do something by itself, if it will."""
+        return self._queue[0].due if self._queue else None
+
+    def due(self, now: datetime) -> list[Output]:
+        """Inputs the user produces up to ``now``, in order."""
+        out: list[Output] = []
+        while self._queue and self._queue[0].due <= now:
+            pending = heapq.heappop(self._queue)
+            if self.present:
+                out.extend(pending.action(now))
+        return out
+
+    # ------------------------------------------------------------ what the robot does
+
+    def on_command(self, command: RobotCommand, now: datetime) -> None:
+        """Hear and see one robot command."""
+        if not self.present or not self.ready:
+            return
+        if command.channel == "speech" and command.action == "say":
+            text = str(command.args.get("text", ""))
+            if "?" in text:
+                self._ask(text, (), now)
+        elif command.channel == "screen" and command.action in ("show", "menu"):
+            choices = _choices(command.args.get("choices"))
+            if choices:
+                text = str(command.args.get("text", command.args.get("title", "")))
+                question = self._question
+                if question is not None and not question.answered and question.asked == now:
+                    question.choices = choices  # the screen shows the choices of what was said
+                else:
+                    self._ask(text, choices, now)
+
+    def _ask(self, text: str, choices: tuple[str, ...], now: datetime) -> None:
+        question = self._question = _Question(text, now, choices)
+        self.stats.questions_heard += 1
+        delay = _draw(self.rng, self.persona.speech.answer_delay_s)
+        self._schedule(now + timedelta(seconds=delay), lambda t: self._answer(question, t))
+
+    def on_decision(self, decision: Decision, now: datetime) -> None:
+        """Follow what the robot decided: which activity runs now."""
+        if not self.present:
+            return
+        name = decision.activity
+        if decision.action in ("start", "resume") and name is not None:
+            if decision.action == "start" or name != self.activity:
+                self._started(name, now)
+        elif decision.action in ("complete", "cancel", "fail") and name == self.activity:
+            self.activity = None
+            self._wants_stop = None
+            if decision.action == "complete" and name in ENTERTAINMENT_ACTIVITIES:
+                self.last_activity = name
+                self._maybe_ask_by_name(now)
+
+    def _started(self, name: str, now: datetime) -> None:
+        self.activity = name
+        self._activity_serial += 1
+        self._wants_stop = None
+        if name not in ENTERTAINMENT_ACTIVITIES:
+            return
+        patience = self.persona.patience
+        if self.persona.liking(name) < patience.dislike_below:
+            serial = self._activity_serial
+            wait = _draw(self.rng, patience.stop_after_s)
+            self._schedule(now + timedelta(seconds=wait), lambda t: self._lose_patience(serial, t))
+
+    # ------------------------------------------------------------ what the user does
+
+    def _lose_patience(self, serial: int, now: datetime) -> list[Output]:
+        if serial != self._activity_serial or self.activity is None:
+            return []
+        if self.touches_left is not None and self.touches_left <= 0:
+            return []
+        if self.touches_left is not None:
+            self.touches_left -= 1
+        self._wants_stop = self.activity
+        self.stats.touches += 1
+        return [(keys.PERCEPTION_TOUCH, Touch(part="right_shoulder", kind="tap"))]
+
+    def _maybe_ask_by_name(self, now: datetime) -> None:
+        if self.rng.random() >= self.persona.ask_by_name_rate:
+            return
+        delay = _draw(self.rng, self.persona.speech.answer_delay_s)
+        self._schedule(now + timedelta(seconds=delay), self._ask_by_name)
+
+    def _ask_by_name(self, now: datetime) -> list[Output]:
+        question = self._question
+        if question is not None and not question.answered and (now - question.asked).seconds < 30:
+            return []  # the robot is asking something: answer that instead
+        options = [name for name in self.persona.favourites()[:3] if name != self.last_activity]
+        wanted = self.rng.choice(options)
+        phrase = self.rng.choice(REQUEST_PHRASES).format(wanted)
+        self.stats.requests_by_name += 1
+        return self._say(phrase, now, retry=None)
+
+    def say(self, text: str, now: datetime) -> list[Output]:
+        """Say ``text`` (through the recognizer: it may come out garbled)."""
+        return self._say(text, now, retry=None)
+
+    def _answer(self, question: _Question, now: datetime) -> list[Output]:
+        if question is not self._question or question.answered:
+            return []
+        speech = self.persona.speech
+        if not question.retried and self.rng.random() < speech.no_answer_rate:
+            question.answered = True
+            self.stats.unanswered += 1
+            return []
+        text = self._choose_answer(question)
+        if question.choices and self.rng.random() < speech.screen_rate:
+            question.answered = True
+            self.stats.answers += 1
+            self.stats.screen_answers += 1
+            if _is_activity(text):
+                self.stats.menu_choices += 1
+            return [(keys.PERCEPTION_SCREEN, ScreenChoice(choice=text))]
+        return self._say(text, now, retry=question)
+
+    def _say(self, text: str, now: datetime, retry: _Question | None) -> list[Output]:
+        speech = self.persona.speech
+        if self.rng.random() < speech.error_rate:
+            self.stats.misrecognized += 1
+            if retry is not None and not retry.retried:
+                # Not understood: the user tries once more, a little later.
+                retry.retried = True
+                delay = _draw(self.rng, speech.answer_delay_s)
+                self._schedule(now + timedelta(seconds=delay), lambda t: self._answer(retry, t))
+            garbled = _garble(text, self.rng)
+            return [(keys.PERCEPTION_SPEECH, Speech(text=garbled, confidence=0.3))]
+        if retry is not None:
+            retry.answered = True
+            self.stats.answers += 1
+            self.stats.voice_answers += 1
+            if _is_activity(text):
+                self.stats.menu_choices += 1
+        confidence = round(self.rng.uniform(0.75, 0.98), 2)
+        return [(keys.PERCEPTION_SPEECH, Speech(text=text, confidence=confidence))]
+
+    def _choose_answer(self, question: _Question) -> str:
+        choices = question.choices
+        lowered = {choice.lower() for choice in choices}
+        if lowered & CONFIRM_WORDS and lowered <= CONFIRM_WORDS | {"yes", "no"}:
+            stop = self._wants_stop is not None and self._wants_stop == self.activity
+            if stop and self.rng.random() < self.persona.patience.continue_rate:
+                stop = False
+            wanted = "stop" if stop else "continue"
+            return next((c for c in choices if c.lower() == wanted), choices[0])
+        if choices and set(choices) <= set(FEEDBACK_WORDS):
+            return self._rating(question)
+        if choices:
+            return self._pick(choices)
+        return self._open_answer(question.text)
+
+    def _rating(self, question: _Question) -> str:
+        name = _named_activity(question.text) or self.last_activity
+        liking = self.persona.liking(name) if name else 0.5
+        score = min(5, max(1, round(1 + 4 * liking + self.rng.gauss(0.0, 0.4))))
+        return str(score)
+
+    def _pick(self, choices: Sequence[str]) -> str:
+        """A menu or a quiz: the best-liked activity among them, else any choice."""
+        scored = [
+            (self.persona.liking(name) + self.rng.uniform(0.0, 0.25), choice)
+            for choice in choices
+            if (name := _choice_activity(choice)) is not None
+        ]
+        if scored:
+            return max(scored)[1]
+        return self.rng.choice(list(choices))
+
+    def _open_answer(self, text: str) -> str:
+        lowered = text.lower()
+        for name, value in self.persona.features.items():
+            if re.search(rf"\b{re.escape(name.replace('_', ' '))}\b", lowered):
+                return str(value)
+        if "how are you" in lowered:
+            return "fine, thank you"
+        if "old" in lowered and "age" in self.persona.features:
+            return str(self.persona.features["age"])
+        return self.rng.choice(("yes", "I think so", "maybe", "no"))
+
+
+def _choices(raw: object) -> tuple[str, ...]:
+    if isinstance(raw, list | tuple):
+        out = []
+        for item in raw:
+            if isinstance(item, str):
+                out.append(item)
+            elif isinstance(item, dict):
+                label = item.get("id", item.get("value", item.get("label")))
+                if label is not None:
+                    out.append(str(label))
+        return tuple(out)
+    return ()
+
+
+def _choice_activity(choice: str) -> str | None:
+    name = choice.strip().lower().replace(" ", "_")
+    return name if name in ACTIVITIES else None
+
+
+def _is_activity(text: str) -> bool:
+    return _choice_activity(text) is not None
+
+
+def _named_activity(text: str) -> str | None:
+    lowered = text.lower().replace(" ", "_")
+    return next((name for name in ACTIVITIES if name in lowered), None)
+
+
+def _garble(text: str, rng: random.Random) -> str:
+    """What a speech recognizer makes of an utterance it got wrong."""
+    syllables = ("ba", "ro", "mi", "ta", "ne", "lu", "so", "ke")
+    return " ".join(
+        "".join(rng.choice(syllables) for _ in range(rng.randint(1, 3)))
+        for _ in range(max(1, len(text.split())))
+    )
