@@ -1,10 +1,238 @@
-"""Command line of the sim package, mounted by dms.cli."""
+"""Command line of the sim package, mounted by dms.cli as ``dms sim`` and ``dms record``."""
+
+from __future__ import annotations
+
+import json
+import signal
+import sys
+import threading
+from pathlib import Path
+from types import FrameType
+from typing import Annotated, Literal
 
 import typer
 
+from sim.errors import SimError
+
 app = typer.Typer(no_args_is_help=True)
 
+DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 
-def record_command() -> None:
-    """Record every message of one robot into MCAP."""
-    raise typer.Exit(1)
+
+def _print_json(payload: object) -> None:
+    typer.echo(json.dumps(payload, indent=2))
+
+
+def _stop_on_signals() -> threading.Event:
+    """An event set by SIGINT or SIGTERM (the CLI's way to end a live command)."""
+    stop = threading.Event()
+
+    def handler(_signum: int, _frame: FrameType | None) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+    return stop
+
+
+@app.command("run")
+def run_command(
+    scenario: Annotated[str, typer.Argument(help="Scenario file (or a shipped scenario's name).")],
+    as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
+) -> None:
+    """Replay a scripted session on the virtual clock; exit 1 naming the first failed check."""
+    from sim.runner import run_scenario
+
+    result = run_scenario(scenario)
+    if as_json:
+        _print_json(result.to_json())
+    else:
+        from dms.daemon import format_decision
+
+        for timed in result.decisions:
+            typer.echo(f"{timed.t:8.1f}s  {format_decision(timed.decision)}")
+        for check in result.results:
+            mark = "ok  " if check.passed else "FAIL"
+            typer.echo(f"{mark} {check.description}: {check.detail}")
+        typer.echo(
+            f"{result.name}: {sum(r.passed for r in result.results)}/{len(result.results)} "
+            f"expectations hold ({result.ticks} ticks, {result.wall_s:.2f} s)"
+        )
+    failure = result.first_failure
+    if failure is not None:
+        line = f":{failure.line}" if failure.line else ""
+        print(
+            f"dms: {result.path}{line}: expectation {failure.index} failed: "
+            f"{failure.description}: {failure.detail}",
+            file=sys.stderr,
+        )
+        raise typer.Exit(1)
+
+
+@app.command("study")
+def study_command(
+    sessions: Annotated[int, typer.Option(min=1, max=10000, help="Participants.")] = 30,
+    minutes: Annotated[float, typer.Option(min=0.5, max=24 * 60, help="Session length.")] = 30.0,
+    proactivity: Annotated[
+        str, typer.Option(help="Proactivity of every participant: low, moderate or high.")
+    ] = "moderate",
+    seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print JSON (CONTRACT.md's keys).")
+    ] = False,
+) -> None:
+    """The seed's first experiment with simulated participants; prints its Table 4."""
+    from sim.study import run_study
+
+    level = _proactivity(proactivity)
+    result = run_study(sessions, minutes, level, seed)
+    if as_json:
+        _print_json(result.to_json())
+    else:
+        typer.echo(result.table())
+
+
+def _proactivity(value: str) -> Literal["low", "moderate", "high"]:
+    if value == "low":
+        return "low"
+    if value == "moderate":
+        return "moderate"
+    if value == "high":
+        return "high"
+    raise SimError(f"--proactivity: {value!r} is not low, moderate or high")
+
+
+@app.command("longterm")
+def longterm_command(
+    days: Annotated[int, typer.Option(min=1, max=3660, help="Days of robot life.")] = 30,
+    users: Annotated[int, typer.Option(min=0, max=100, help="Simulated users visiting.")] = 3,
+    seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+    out: Annotated[Path, typer.Option(help="Folder for the PNG plots.")] = Path("longterm"),
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print JSON (CONTRACT.md's keys).")
+    ] = False,
+) -> None:
+    """Weeks of robot life with users visiting; plots drives, wellbeing and activities."""
+    from sim.longterm import run_longterm
+
+    width = 30
+
+    def progress(day: int) -> None:
+        done = int(width * day / days)
+        sys.stderr.write(f"\r[{'#' * done}{'.' * (width - done)}] day {day}/{days}")
+        if day == days:
+            sys.stderr.write("\n")
+        sys.stderr.flush()
+
+    result = run_longterm(days, users, seed, out, progress=progress)
+    if as_json:
+        _print_json(result.to_json())
+        return
+    typer.echo(
+        f"{days} days, users {', '.join(result.users) or 'none'}: {result.visits} visits, "
+        f"{result.decisions} decisions, {result.ticks} ticks in {result.wall_s:.1f} s, "
+        f"peak RSS {result.peak_rss_mb:.0f} MB"
+    )
+    typer.echo(
+        f"wellbeing mean {result.wellbeing_mean:.1f}; drives max "
+        + ", ".join(f"{name} {value:.1f}" for name, value in sorted(result.drives_max.items()))
+    )
+    top = sorted(result.activity_seconds.items(), key=lambda item: -item[1])
+    typer.echo("time by activity: " + ", ".join(f"{n} {s / 3600:.1f} h" for n, s in top))
+    for path in result.plots:
+        typer.echo(f"wrote {path}")
+
+
+@app.command("replay")
+def replay_command(
+    recording: Annotated[Path, typer.Argument(help="An MCAP file written by dms record.")],
+    seed: Annotated[int, typer.Option(help="Seed of the replayed controller.")] = 0,
+    as_json: Annotated[bool, typer.Option("--json", help="Print the report as JSON.")] = False,
+) -> None:
+    """Feed a recording's inputs through the controller and report differing decisions.
+
+    Exit 0 when the replayed decisions are the recorded ones, 1 when they differ.
+    """
+    from sim.replay import replay
+
+    report = replay(recording, seed=seed)
+    if as_json:
+        _print_json(report.to_json())
+    else:
+        typer.echo(report.text())
+    if report.truncated:
+        print(f"dms: {recording}: truncated: {report.truncated}", file=sys.stderr)
+    if not report.same:
+        raise typer.Exit(1)
+
+
+@app.command("robot")
+def robot_command(
+    robot_id: Annotated[str, typer.Option("--robot-id", help="Robot id.")] = "mini",
+    connect: Annotated[list[str] | None, typer.Option(help="Zenoh endpoint to connect to.")] = None,
+    listen: Annotated[list[str] | None, typer.Option(help="Zenoh endpoint to listen on.")] = None,
+    seed: Annotated[int, typer.Option(help="Seed of the simulated robot.")] = 0,
+    duration: Annotated[float | None, typer.Option(min=0.0, help="Stop after S seconds.")] = None,
+) -> None:
+    """The simulated Mini as its own process: executes robot/command, publishes robot/feedback."""
+    from dms.bus import ZenohClient, make_config
+    from dms.clock import RealClock
+    from dms.keys import ROBOT_ID_RE
+    from sim.robot_node import RobotNode
+
+    if not ROBOT_ID_RE.match(robot_id):
+        raise SimError(f"--robot-id: {robot_id!r} does not match [a-z0-9_-]+")
+    endpoints = connect if connect or listen else [DEFAULT_ENDPOINT]
+    with ZenohClient(robot_id, make_config(listen=listen or (), connect=endpoints or ())) as client:
+        node = RobotNode(client, RealClock(), seed)
+        stop = _stop_on_signals()
+
+        def relay() -> None:
+            stop.wait()
+            node.stopped.set()
+
+        threading.Thread(target=relay, daemon=True).start()
+        print(f"dms: simulated robot {robot_id} serving; Ctrl-C stops", file=sys.stderr)
+        node.run(duration)
+        node.stopped.set()
+        stop.set()
+    print(f"dms: {node.commands} commands, {node.feedback} feedback messages", file=sys.stderr)
+
+
+@app.command("personas")
+def personas_command() -> None:
+    """List the shipped personas."""
+    from sim.persona import load_persona, shipped_personas
+
+    for name in shipped_personas():
+        persona = load_persona(name)
+        typer.echo(f"{name:<10} {persona.proactivity:<9} {persona.description}")
+
+
+def record_command(
+    out: Annotated[Path, typer.Option("--out", help="The MCAP file to write.")],
+    robot_id: Annotated[str, typer.Option("--robot-id", help="Robot id.")] = "mini",
+    connect: Annotated[list[str] | None, typer.Option(help="Zenoh endpoint to connect to.")] = None,
+    duration: Annotated[
+        float | None, typer.Option(min=0.0, help="Stop after S seconds (else on SIGINT/SIGTERM).")
+    ] = None,
+) -> None:
+    """Record every message under robots/<id>/** into MCAP (JSON with schemas, for Foxglove)."""
+    import time
+
+    from dms.bus import ZenohClient, make_config
+    from dms.keys import ROBOT_ID_RE
+    from sim.recording import McapRecorder, record_until
+
+    if not ROBOT_ID_RE.match(robot_id):
+        raise SimError(f"--robot-id: {robot_id!r} does not match [a-z0-9_-]+")
+    stop = _stop_on_signals()
+    with ZenohClient(robot_id, make_config(connect=connect or [DEFAULT_ENDPOINT])) as client:
+        recorder = McapRecorder(out, robot_id)
+        print(f"dms: recording robots/{robot_id}/** into {out}; Ctrl-C stops", file=sys.stderr)
+        stats = record_until(recorder, client.subscribe_raw, time.time_ns, stop, duration)
+    by_key = ", ".join(f"{key} {count}" for key, count in sorted(stats.by_key.items()))
+    print(f"dms: {stats.messages} messages recorded ({by_key or 'none'})", file=sys.stderr)
+
+
+__all__ = ["app", "record_command"]

@@ -1,0 +1,272 @@
+"""The daemon's controller stack on a virtual clock, with scripted and simulated users.
+
+:class:`Simulation` builds the same stack as ``dms run`` (:func:`dms.assembly.build_stack`)
+over the in-process :class:`sim.robot.SimRobot`, a fresh SQLite file and a
+:class:`~dms.clock.VirtualClock`, and runs it the way the daemon does: a tick every
+``tick_period_s`` (2 Hz) and one at once when an urgent input (touch, speech, screen,
+request) arrives. Inputs enter through :meth:`InputBoard.accept`, exactly as the bus
+would deliver them; the user in front of the robot hears every robot command and sees
+every decision.
+
+Between inputs nothing happens but the clock, so the simulation runs as fast as the
+controller ticks. :attr:`Simulation.idle_step_s` lets a long run take larger virtual
+steps while nobody is present and no dialog is open (the motivation model steps
+exactly for any ``dt``); see docs/simulation.md for what ``ticks`` counts.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import random
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from datetime import datetime, timedelta
+from pathlib import Path
+
+from pydantic import BaseModel
+
+from dms import keys
+from dms.assembly import Stack, build_stack
+from dms.clock import VirtualClock
+from dms.config import Settings
+from dms.controller import TickRecord
+from dms.messages import Decision, RobotCommand, UserPerception
+from sim.user import SimulatedUser
+
+ScriptedAction = Callable[[], None]
+
+
+@dataclass(frozen=True, slots=True)
+class TimedDecision:
+    """A decision and the virtual second it was taken at (from the start)."""
+
+    t: float
+    decision: Decision
+
+
+@dataclass(order=True)
+class _Scheduled:
+    t: float
+    order: int
+    action: ScriptedAction = field(compare=False)
+    urgent: bool = field(compare=False, default=False)
+
+
+class Simulation:
+    """One robot's controller stack on a virtual clock."""
+
+    def __init__(
+        self,
+        settings: Settings | None = None,
+        *,
+        seed: int = 0,
+        start: datetime | None = None,
+        workdir: Path | None = None,
+        with_memory: bool = True,
+    ) -> None:
+        from sim.robot import SimRobot
+
+        settings = settings or Settings()
+        self._tmp: tempfile.TemporaryDirectory[str] | None = None
+        if settings.db is None and with_memory:
+            if workdir is None:
+                self._tmp = tempfile.TemporaryDirectory(prefix="dms-sim-")
+                workdir = Path(self._tmp.name)
+            settings = settings.model_copy(update={"db": f"sqlite:///{workdir / 'sim.db'}"})
+        self.settings = settings.model_copy(update={"seed": seed})
+        self.clock = VirtualClock(start)
+        self.start = self.clock.now()
+        self.robot = SimRobot(rng_seed=seed)
+        self.errors: list[tuple[float, str, str]] = []
+        self.decisions: list[TimedDecision] = []
+        self.commands = 0
+        self.user: SimulatedUser | None = None
+        """The simulated user in front of the robot, if any."""
+        self.presence: UserPerception | None = None
+        """A scripted perception/user refreshed every tick (when no simulated user)."""
+        self.perception_on = True
+        self.period = self.settings.controller.tick_period_s
+        self.idle_step_s: float | None = None
+        self.periodic = True
+        """False: tick only when told (a replay ticks at the recorded times)."""
+        self.ticks = 0
+        self.last: TickRecord | None = None
+        self.decision_listeners: list[Callable[[TimedDecision], None]] = []
+        self.tick_listeners: list[Callable[[TickRecord], None]] = []
+        self.command_listeners: list[Callable[[RobotCommand, datetime], None]] = []
+        self._queue: list[_Scheduled] = []
+        self._order = itertools.count()
+        self._next_tick = 0.0
+        try:
+            self.stack: Stack = build_stack(
+                self.settings,
+                self.robot,
+                on_command=self._on_command,
+                report_error=self._on_error,
+                rng=random.Random(seed),
+                with_memory=with_memory,
+            )
+        except BaseException:
+            self._cleanup_tmp()
+            raise
+        self.controller = self.stack.controller
+
+    # ------------------------------------------------------------ plumbing
+
+    def close(self) -> None:
+        """Close the store and remove the temporary database."""
+        self.stack.close()
+        self._cleanup_tmp()
+
+    def _cleanup_tmp(self) -> None:
+        if self._tmp is not None:
+            self._tmp.cleanup()
+            self._tmp = None
+
+    def __enter__(self) -> Simulation:
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        self.close()
+
+    @property
+    def t(self) -> float:
+        """Virtual seconds since the start."""
+        return self.clock.monotonic()
+
+    def now(self) -> datetime:
+        return self.clock.now()
+
+    def _on_command(self, command: RobotCommand) -> None:
+        self.commands += 1
+        now = self.clock.now()
+        if self.user is not None:
+            self.user.on_command(command, now)
+        for listener in self.command_listeners:
+            listener(command, now)
+
+    def _on_error(self, key: str, error: str) -> None:
+        self.errors.append((self.t, key, error))
+
+    def feed(self, key: str, message: BaseModel) -> None:
+        """Deliver one input now, as the bus would."""
+        self.stack.inputs.accept(key, message, self.clock.monotonic())
+
+    # ------------------------------------------------------------ users
+
+    def seat(self, user: SimulatedUser) -> None:
+        """``user`` comes to the robot (and is in front of it until :meth:`unseat`)."""
+        self.user = user
+        self.presence = None
+        user.arrive(self.clock.now())
+        self.feed(keys.PERCEPTION_USER, user.perception())
+
+    def unseat(self) -> None:
+        """The simulated user leaves."""
+        if self.user is not None:
+            self.user.leave(self.clock.now())
+            self.user = None
+        self.presence = UserPerception(present=False, user_id=None, ready=False, engagement=None)
+        self.feed(keys.PERCEPTION_USER, self.presence)
+
+    # ------------------------------------------------------------ the loop
+
+    def at(self, t: float, action: ScriptedAction, urgent: bool = False) -> None:
+        """Run ``action`` at virtual second ``t``; an urgent one is followed by a tick."""
+        heapq.heappush(self._queue, _Scheduled(t, next(self._order), action, urgent))
+
+    def tick(self, urgent: bool = False) -> TickRecord:
+        """One controller tick now, with the perception refreshed first."""
+        if self.perception_on:
+            if self.user is not None:
+                self.feed(keys.PERCEPTION_USER, self.user.perception())
+            elif self.presence is not None:
+                self.feed(keys.PERCEPTION_USER, self.presence)
+        now = self.clock.now()
+        record = self.controller.tick(now, self.clock.monotonic(), urgent)
+        self.ticks += 1
+        self.last = record
+        t = self.t
+        for decision in record.decisions:
+            timed = TimedDecision(t, decision)
+            self.decisions.append(timed)
+            if self.user is not None:
+                self.user.on_decision(decision, now)
+            for listener in self.decision_listeners:
+                listener(timed)
+        for tick_listener in self.tick_listeners:
+            tick_listener(record)
+        return record
+
+    def _user_outputs(self) -> bool:
+        """Deliver what the user in front does by now; True if any of it is urgent."""
+        user = self.user
+        if user is None:
+            return False
+        urgent = False
+        for key, message in user.due(self.clock.now()):
+            self.feed(key, message)
+            urgent = urgent or key in keys.URGENT_INPUTS
+        return urgent
+
+    def _user_due_t(self) -> float | None:
+        if self.user is None:
+            return None
+        due = self.user.next_due()
+        if due is None:
+            return None
+        return (due - self.start).total_seconds()
+
+    def _step(self) -> float:
+        """The period to the next periodic tick: larger while idle, if allowed."""
+        idle = self.idle_step_s
+        if idle is None or self.user is not None:
+            return self.period
+        if self.presence is not None and self.presence.present:
+            return self.period
+        if self.controller.dialog is not None:
+            return self.period
+        return idle
+
+    def run_until(self, t_end: float) -> None:
+        """Tick (periodically and on urgent inputs) until virtual second ``t_end``."""
+        while True:
+            candidates = [self._next_tick if self.periodic else float("inf")]
+            if self._queue:
+                candidates.append(self._queue[0].t)
+            user_t = self._user_due_t()
+            if user_t is not None:
+                candidates.append(user_t)
+            upcoming = min(candidates)
+            if upcoming > t_end:
+                break
+            if upcoming > self.t:
+                self.clock.advance(upcoming - self.t)
+            urgent = False
+            while self._queue and self._queue[0].t <= self.t:
+                scheduled = heapq.heappop(self._queue)
+                scheduled.action()
+                urgent = urgent or scheduled.urgent
+            urgent = self._user_outputs() or urgent
+            periodic = self.periodic and self._next_tick <= self.t
+            if periodic or urgent:
+                self.tick(urgent=urgent and not periodic)
+            if periodic:
+                self._next_tick = self.t + self._step()
+                # Never step over something scheduled: an arrival, a scripted input.
+                if (
+                    self._queue
+                    and self._queue[0].t < self._next_tick
+                    and self._step() > self.period
+                ):
+                    self._next_tick = max(self.t + self.period, self._queue[0].t)
+        if t_end > self.t:
+            self.clock.advance(t_end - self.t)
+
+    def run_for(self, seconds: float) -> None:
+        self.run_until(self.t + seconds)
+
+    def when(self, t: float) -> datetime:
+        return self.start + timedelta(seconds=t)

@@ -1,0 +1,245 @@
+"""``dms sim longterm``: weeks of robot life, users visiting on their schedules.
+
+The robot runs on the virtual clock day and night. Each user (a shipped persona,
+taken in order) visits on the days and at the times of its persona, a little earlier
+or later each time; two visits never overlap (the later one waits). Each user has a
+daily reminder in the agenda, due ten minutes into their first visit of the day.
+
+While someone is in front of the robot, or a dialog is open, the controller ticks at
+2 Hz as in the daemon. While nobody is there it ticks every ``idle_step_s`` (60 s)
+instead, and at once at an arrival: the motivation model integrates any step exactly
+(it is a closed form between inputs), the idle behaviors (sleep, wait, calling for
+attention) only react to the motivation, and the agenda fires only for a present
+user, so nothing is lost but the resolution of the idle timeline. ``ticks`` in the
+JSON counts the controller ticks actually run.
+"""
+
+from __future__ import annotations
+
+import random
+import resource
+import sys
+import time
+from collections import defaultdict
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+from typing import Any
+
+from dms.config import Settings
+from dms.controller import TickRecord
+from sim.persona import WEEKDAYS, Persona, load_persona, shipped_personas
+from sim.user import SimulatedUser
+
+IDLE_STEP_S = 60.0
+SAMPLE_EVERY_S = 300.0
+START = datetime(2026, 11, 23, 0, 0, tzinfo=UTC)  # a Monday
+
+
+@dataclass(frozen=True, slots=True)
+class PlannedVisit:
+    user: int
+    start_s: float
+    end_s: float
+
+
+def plan_visits(personas: list[Persona], days: int, rng: random.Random) -> list[PlannedVisit]:
+    """Every visit of every user over ``days``, in time order, never overlapping."""
+    raw: list[PlannedVisit] = []
+    for day in range(days):
+        weekday = WEEKDAYS[(START + timedelta(days=day)).weekday()]
+        for index, persona in enumerate(personas):
+            for visit in persona.visits:
+                if weekday not in visit.weekdays():
+                    continue
+                at = float(day * 86400 + visit.at.hour * 3600 + visit.at.minute * 60)
+                at += rng.uniform(-visit.jitter_min, visit.jitter_min) * 60
+                length = visit.minutes * 60 * rng.uniform(0.8, 1.2)
+                raw.append(PlannedVisit(index, max(0.0, at), max(0.0, at) + length))
+    raw.sort(key=lambda v: v.start_s)
+    planned: list[PlannedVisit] = []
+    free_at = 0.0
+    for wanted in raw:
+        start = max(wanted.start_s, free_at)
+        end = start + (wanted.end_s - wanted.start_s)
+        if start >= days * 86400:
+            continue
+        planned.append(PlannedVisit(wanted.user, start, min(end, days * 86400.0)))
+        free_at = end + 120.0
+    return planned
+
+
+@dataclass
+class LongtermResult:
+    days: int
+    users: list[str]
+    ticks: int
+    wall_s: float
+    drives_max: dict[str, float]
+    wellbeing_mean: float
+    activity_seconds: dict[str, float]
+    activity_seconds_by_hour: dict[str, dict[str, float]]
+    peak_rss_mb: float
+    visits: int
+    decisions: int
+    samples: list[tuple[float, dict[str, float], float]] = field(repr=False)
+    spans: list[tuple[str, float, float]] = field(repr=False)
+    plots: list[Path] = field(default_factory=list)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "days": self.days,
+            "ticks": self.ticks,
+            "wall_s": round(self.wall_s, 3),
+            "drives_max": {k: round(v, 3) for k, v in self.drives_max.items()},
+            "wellbeing_mean": round(self.wellbeing_mean, 3),
+            "activity_seconds": {k: round(v, 1) for k, v in sorted(self.activity_seconds.items())},
+            "activity_seconds_by_hour": {
+                hour: {k: round(v, 1) for k, v in sorted(names.items())}
+                for hour, names in self.activity_seconds_by_hour.items()
+            },
+            "peak_rss_mb": round(self.peak_rss_mb, 1),
+            "users": self.users,
+            "visits": self.visits,
+            "decisions": self.decisions,
+            "plots": [str(path) for path in self.plots],
+        }
+
+
+class _Tracker:
+    """Accounts the time of each activity, by hour of day, and samples the drives."""
+
+    def __init__(self, start: datetime) -> None:
+        self.start = start
+        self.last_t: float | None = None
+        self.last_activity: str | None = None
+        self.activity_seconds: dict[str, float] = defaultdict(float)
+        self.by_hour: dict[int, dict[str, float]] = {h: defaultdict(float) for h in range(24)}
+        self.drives_max: dict[str, float] = {}
+        self.wellbeing_area = 0.0
+        self.last_wellbeing: float | None = None
+        self.samples: list[tuple[float, dict[str, float], float]] = []
+        self.next_sample = 0.0
+        self.spans: list[tuple[str, float, float]] = []
+        self._span_start = 0.0
+
+    def on_tick(self, t: float, record: TickRecord) -> None:
+        state = record.state
+        if self.last_t is not None:
+            dt = t - self.last_t
+            if self.last_activity is not None and dt > 0:
+                self._account(self.last_activity, self.last_t, t)
+            if self.last_wellbeing is not None:
+                self.wellbeing_area += self.last_wellbeing * dt
+        motivation = state.motivation
+        for name, value in motivation.drives.items():
+            if value > self.drives_max.get(name, float("-inf")):
+                self.drives_max[name] = value
+        self.last_wellbeing = motivation.wellbeing
+        activity = state.activity.name if state.activity is not None else None
+        if activity != self.last_activity:
+            if self.last_activity is not None:
+                self.spans.append((self.last_activity, self._span_start, t))
+            self._span_start = t
+        self.last_activity = activity
+        self.last_t = t
+        if t >= self.next_sample:
+            self.samples.append((t, dict(motivation.drives), motivation.wellbeing))
+            self.next_sample = t + SAMPLE_EVERY_S
+
+    def _account(self, name: str, t0: float, t1: float) -> None:
+        self.activity_seconds[name] += t1 - t0
+        # Split the interval at hour boundaries so that "by hour" is exact.
+        base = self.start.hour * 3600 + self.start.minute * 60 + self.start.second
+        t = t0
+        while t < t1:
+            clock = base + t
+            hour = int(clock // 3600) % 24
+            boundary = (clock // 3600 + 1) * 3600 - base
+            end = min(t1, boundary)
+            self.by_hour[hour][name] += end - t
+            t = end
+
+    def finish(self, t: float) -> None:
+        if self.last_activity is not None:
+            self.spans.append((self.last_activity, self._span_start, t))
+
+
+def _peak_rss_mb() -> float:
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / (1024 * 1024) if sys.platform == "darwin" else peak / 1024
+
+
+def run_longterm(
+    days: int = 30,
+    users: int = 3,
+    seed: int = 0,
+    out: Path | None = None,
+    settings: Settings | None = None,
+    progress: Callable[[int], None] | None = None,
+    idle_step_s: float = IDLE_STEP_S,
+) -> LongtermResult:
+    """Simulate ``days`` of robot life with ``users`` visitors; plots go to ``out``."""
+    from sim.agenda_link import daily_reminder
+    from sim.harness import Simulation
+
+    wall = time.perf_counter()
+    rng = random.Random(seed)
+    names = [name for name in shipped_personas() if name != "demo"]
+    personas = [load_persona(names[i % len(names)]) for i in range(users)]
+    ids = [
+        persona.id if i < len(names) else f"{persona.id}{i // len(names) + 1}"
+        for i, persona in enumerate(personas)
+    ]
+    visits = plan_visits(personas, days, rng)
+    with Simulation(settings, seed=seed, start=START) as sim:
+        sim.idle_step_s = idle_step_s
+        tracker = _Tracker(START)
+        sim.tick_listeners.append(lambda record: tracker.on_tick(sim.t, record))
+        people = [
+            SimulatedUser(persona, random.Random(rng.random()), user_id)
+            for persona, user_id in zip(personas, ids, strict=True)
+        ]
+        first_of_day: set[tuple[int, int]] = set()
+        for visit in visits:
+            day = int(visit.start_s // 86400)
+            if (visit.user, day) not in first_of_day:
+                first_of_day.add((visit.user, day))
+                if sim.stack.agenda is not None:
+                    daily_reminder(
+                        sim.stack.agenda, ids[visit.user], sim.when(visit.start_s + 600), START
+                    )
+            person = people[visit.user]
+            sim.at(visit.start_s, lambda p=person: sim.seat(p))  # type: ignore[misc]
+            sim.at(visit.end_s, sim.unseat)
+        for day in range(1, days + 1):
+            sim.run_until(day * 86400.0)
+            if progress is not None:
+                progress(day)
+        tracker.finish(sim.t)
+        ticks, decisions = sim.ticks, len(sim.decisions)
+    wellbeing_mean = tracker.wellbeing_area / max(1e-9, tracker.last_t or 1e-9)
+    result = LongtermResult(
+        days=days,
+        users=ids,
+        ticks=ticks,
+        wall_s=time.perf_counter() - wall,
+        drives_max=dict(tracker.drives_max),
+        wellbeing_mean=wellbeing_mean,
+        activity_seconds=dict(tracker.activity_seconds),
+        activity_seconds_by_hour={
+            str(hour): {k: v for k, v in names_.items() if v > 0}
+            for hour, names_ in tracker.by_hour.items()
+        },
+        peak_rss_mb=_peak_rss_mb(),
+        visits=len(visits),
+        decisions=decisions,
+        samples=tracker.samples,
+        spans=tracker.spans,
+    )
+    if out is not None:
+        from sim.plots import write_plots
+
+        result.plots = write_plots(result, out)
+    return result

@@ -1,0 +1,231 @@
+"""``dms sim replay``: feed a recording's inputs through the controller again.
+
+The recorded inputs (perception, params, requests) enter a fresh stack (simulated
+robot, temporary store) at their recorded times on a virtual clock. The controller
+ticks when the recorded daemon ticked (the times of its ``dms/state`` messages, urgent
+ticks included), or at 2 Hz when the recording holds no state. The decisions it
+takes are compared, in order, with the recorded ``dms/decision`` messages; each
+stretch where they differ is reported with its time.
+"""
+
+from __future__ import annotations
+
+import difflib
+import time
+from dataclasses import dataclass, field
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ValidationError
+
+from dms import keys
+from dms.config import Settings
+from dms.inputs import InputRejected, parse_input
+from dms.messages import Decision
+from sim.errors import RecordingError
+from sim.recording import Recording, read_recording
+
+REPLAYED_INPUTS = frozenset(
+    {
+        keys.PERCEPTION_USER,
+        keys.PERCEPTION_TOUCH,
+        keys.PERCEPTION_SPEECH,
+        keys.PERCEPTION_SCREEN,
+        keys.PARAMS_ROBOT,
+        keys.PARAMS_ENV,
+        keys.REQUEST,
+    }
+)
+
+DecisionKey = tuple[str, str | None, str, str | None]
+
+
+def _key(decision: Decision) -> DecisionKey:
+    return (decision.action, decision.activity, decision.reason, decision.chosen_by)
+
+
+def _describe(decision: Decision) -> str:
+    who = f" by {decision.chosen_by}" if decision.chosen_by else ""
+    return f"{decision.action} {decision.activity or '-'} [{decision.reason}{who}]"
+
+
+@dataclass
+class Difference:
+    """One stretch where the replayed decisions differ from the recorded ones."""
+
+    time: str
+    recorded: list[str]
+    replayed: list[str]
+
+    def __str__(self) -> str:
+        rec = "; ".join(self.recorded) or "nothing"
+        rep = "; ".join(self.replayed) or "nothing"
+        return f"{self.time}: recorded {rec} | replayed {rep}"
+
+
+@dataclass
+class ReplayReport:
+    """How a replay went."""
+
+    file: Path
+    inputs: int
+    rejected_inputs: int
+    ticks: int
+    recorded: list[Decision]
+    replayed: list[Decision]
+    differences: list[Difference]
+    truncated: str | None
+    wall_s: float
+    span_s: float
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def same(self) -> bool:
+        return not self.differences
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "file": str(self.file),
+            "inputs": self.inputs,
+            "rejected_inputs": self.rejected_inputs,
+            "ticks": self.ticks,
+            "span_s": round(self.span_s, 3),
+            "recorded_decisions": len(self.recorded),
+            "replayed_decisions": len(self.replayed),
+            "same": self.same,
+            "differences": [
+                {"time": d.time, "recorded": d.recorded, "replayed": d.replayed}
+                for d in self.differences
+            ],
+            "truncated": self.truncated,
+            "notes": self.notes,
+            "wall_s": round(self.wall_s, 3),
+        }
+
+    def text(self) -> str:
+        lines = [
+            f"{self.file}: {self.inputs} inputs over {self.span_s:.1f} s, {self.ticks} ticks; "
+            f"{len(self.recorded)} decisions recorded, {len(self.replayed)} replayed"
+        ]
+        if self.truncated:
+            lines.append(f"truncated: {self.truncated}")
+        lines.extend(self.notes)
+        if self.same:
+            lines.append("the replayed decisions are the recorded ones")
+        else:
+            lines.append(f"{len(self.differences)} difference(s):")
+            lines.extend(f"  {difference}" for difference in self.differences)
+        return "\n".join(lines)
+
+
+def _ns_to_dt(ns: int) -> datetime:
+    return datetime.fromtimestamp(ns // 1_000_000_000, UTC) + timedelta(
+        microseconds=(ns % 1_000_000_000) // 1000
+    )
+
+
+def _parse_time(text: str) -> datetime | None:
+    try:
+        return datetime.fromisoformat(text.replace("Z", "+00:00"))
+    except (ValueError, AttributeError):
+        return None
+
+
+def replay(path: Path, seed: int = 0, settings: Settings | None = None) -> ReplayReport:
+    """Replay ``path``; see the module docstring."""
+    from sim.harness import Simulation
+
+    wall = time.perf_counter()
+    recording: Recording = read_recording(path)
+    notes: list[str] = []
+    inputs: list[tuple[datetime, str, BaseModel]] = []
+    recorded: list[Decision] = []
+    tick_times: list[datetime] = []
+    rejected = 0
+    for message in recording.messages:
+        at = _ns_to_dt(message.log_time_ns)
+        if message.key in REPLAYED_INPUTS:
+            try:
+                raw = _encode(message.payload)
+                inputs.append((at, message.key, parse_input(message.key, raw)))
+            except InputRejected:
+                rejected += 1  # the daemon rejected it too: it changed nothing
+        elif message.key == keys.DMS_DECISION:
+            try:
+                recorded.append(Decision.model_validate(message.payload))
+            except ValidationError:
+                notes.append(f"an unreadable decision at {at.isoformat()} was skipped")
+        elif message.key == keys.DMS_STATE and isinstance(message.payload, dict):
+            when = _parse_time(str(message.payload.get("time", "")))
+            if when is not None:
+                tick_times.append(when)
+    if not inputs and not recorded and not tick_times:
+        raise RecordingError(f"{path}: the recording holds no inputs, decisions or states")
+    times = [t for t, _, _ in inputs] + tick_times
+    times += [t for d in recorded if (t := _parse_time(d.time)) is not None]
+    start = min(times)
+    end = max(times)
+    if not tick_times:
+        notes.append("no dms/state in the recording: ticking at 2 Hz")
+    sim = Simulation(settings, seed=seed, start=start)
+    with sim:
+        sim.perception_on = False  # the recorded perception is all there is
+
+        def offset(t: datetime) -> float:
+            return max(0.0, (t - start).total_seconds())
+
+        for at, key, parsed in inputs:
+            sim.at(offset(at), lambda k=key, m=parsed: sim.feed(k, m))  # type: ignore[misc]
+        if tick_times:
+            ticks = sorted(set(tick_times))
+
+            def recorded_tick() -> None:
+                sim.tick(False)
+
+            for when in ticks:
+                # After the inputs of the same instant (the heap keeps insertion order).
+                sim.at(offset(when), recorded_tick)
+            sim.periodic = False
+        sim.run_until(offset(end) + 0.001)
+        replayed = [timed.decision for timed in sim.decisions]
+        tick_count = sim.ticks
+    differences = _compare(recorded, replayed)
+    return ReplayReport(
+        file=path,
+        inputs=len(inputs),
+        rejected_inputs=rejected,
+        ticks=tick_count,
+        recorded=recorded,
+        replayed=replayed,
+        differences=differences,
+        truncated=recording.truncated,
+        wall_s=time.perf_counter() - wall,
+        span_s=(end - start).total_seconds(),
+        notes=notes,
+    )
+
+
+def _encode(payload: Any) -> bytes:
+    import json
+
+    return json.dumps(payload).encode()
+
+
+def _compare(recorded: list[Decision], replayed: list[Decision]) -> list[Difference]:
+    matcher = difflib.SequenceMatcher(
+        a=[_key(d) for d in recorded], b=[_key(d) for d in replayed], autojunk=False
+    )
+    out: list[Difference] = []
+    for tag, a0, a1, b0, b1 in matcher.get_opcodes():
+        if tag == "equal":
+            continue
+        when = recorded[a0].time if a0 < len(recorded) else replayed[b0].time
+        out.append(
+            Difference(
+                when,
+                [f"{d.time[11:23]} {_describe(d)}" for d in recorded[a0:a1]],
+                [f"{d.time[11:23]} {_describe(d)}" for d in replayed[b0:b1]],
+            )
+        )
+    return out
