@@ -147,15 +147,22 @@ def longterm_command(
 def replay_command(
     recording: Annotated[Path, typer.Argument(help="An MCAP file written by dms record.")],
     seed: Annotated[int, typer.Option(help="Seed of the replayed controller.")] = 0,
+    config: Annotated[
+        Path | None, typer.Option(help="The recorded daemon's TOML configuration.")
+    ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the report as JSON.")] = False,
 ) -> None:
     """Feed a recording's inputs through the controller and report differing decisions.
 
     Exit 0 when the replayed decisions are the recorded ones, 1 when they differ.
     """
+    from dms.config import load_config
     from sim.replay import replay
 
-    report = replay(recording, seed=seed)
+    settings = load_config(config) if config is not None else None
+    if settings is not None:
+        settings = settings.model_copy(update={"db": None})  # never the recorded store
+    report = replay(recording, seed=settings.seed or seed if settings else seed, settings=settings)
     if as_json:
         _print_json(report.to_json())
     else:

@@ -3,8 +3,8 @@
 :class:`McapRecorder` writes every sample under ``robots/<id>/**`` as a JSON message
 on a channel named by its key, with the JSON Schema of the message when the key is
 one of CONTRACT.md's (so Foxglove shows typed fields). Chunks are small and
-uncompressed: a recording cut short (the recorder killed, the disk full, a copy
-interrupted) loses at most its last chunk, and :func:`read_recording` reads every
+uncompressed and each completed chunk is flushed to the file: a recording cut short
+(the recorder killed, the disk full, a copy interrupted) loses at most its last chunk, and :func:`read_recording` reads every
 complete record before the cut and says where it ended.
 """
 
@@ -43,7 +43,8 @@ SCHEMA_BY_KEY: dict[str, str] = {
 }
 """The schema (a name in :data:`dms.messages.SCHEMAS`) of each contract key."""
 
-CHUNK_SIZE = 64 * 1024
+CHUNK_SIZE = 8 * 1024
+"""Small chunks: a recorder killed outright loses only the last few seconds."""
 
 
 @dataclass
@@ -59,8 +60,15 @@ class RecordStats:
 class McapRecorder:
     """Writes samples of one robot into an MCAP file; safe to call from Zenoh threads."""
 
-    def __init__(self, out: Path | IO[bytes], robot_id: str) -> None:
+    def __init__(
+        self,
+        out: Path | IO[bytes],
+        robot_id: str,
+        on_written: Callable[[str], None] | None = None,
+    ) -> None:
+        """``on_written(key)`` is called after each message is recorded (tests wait on it)."""
         self.robot_id = robot_id
+        self._on_written = on_written
         self._file: IO[bytes] | None = None
         if isinstance(out, Path):
             try:
@@ -123,8 +131,12 @@ class McapRecorder:
                 sequence=self._sequence,
             )
             self._sequence += 1
+            if self._file is not None:
+                self._file.flush()
             self.stats.messages += 1
             self.stats.by_key[key] = self.stats.by_key.get(key, 0) + 1
+        if self._on_written is not None:
+            self._on_written(key)
         return True
 
     def close(self) -> None:

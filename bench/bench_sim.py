@@ -1,0 +1,68 @@
+"""Benchmarks of the simulation: one JSON object on stdout.
+
+- ``session_30min_s``: a 30-minute session with one simulated user (the demo persona
+  replaced by ``alice``), through the full stack on the virtual clock; target <= 1 s.
+- ``study_30x30_s``: ``dms sim study`` with its defaults (30 sessions of 30 minutes);
+  target <= 60 s.
+- ``longterm_30d_3u_s`` and ``longterm_peak_rss_mb``: ``dms sim longterm`` for 30 days
+  with 3 users; targets <= 60 s and <= 300 MB. It runs first, so the process's peak
+  resident size is its own.
+
+Run: ``.venv/bin/python bench/bench_sim.py``
+"""
+
+from __future__ import annotations
+
+import json
+import random
+import time
+
+from sim.harness import Simulation
+from sim.longterm import run_longterm
+from sim.persona import load_persona
+from sim.study import run_study
+from sim.user import SimulatedUser
+
+
+def bench_session(minutes: float = 30.0) -> dict[str, float]:
+    wall = time.perf_counter()
+    with Simulation(seed=1) as sim:
+        sim.seat(SimulatedUser(load_persona("alice"), random.Random(1)))
+        sim.run_for(minutes * 60)
+        ticks, decisions = sim.ticks, len(sim.decisions)
+    elapsed = time.perf_counter() - wall
+    return {
+        "session_30min_s": round(elapsed, 3),
+        "session_ticks": ticks,
+        "session_decisions": decisions,
+        "session_tick_us": round(1e6 * elapsed / max(1, ticks), 1),
+    }
+
+
+def main() -> None:
+    out: dict[str, object] = {"benchmark": "sim"}
+    longterm = run_longterm(days=30, users=3, seed=0)
+    out.update(
+        {
+            "longterm_30d_3u_s": round(longterm.wall_s, 3),
+            "longterm_ticks": longterm.ticks,
+            "longterm_visits": longterm.visits,
+            "longterm_peak_rss_mb": round(longterm.peak_rss_mb, 1),
+        }
+    )
+    out.update(bench_session())
+    study = run_study(sessions=30, minutes=30, seed=0)
+    out["study_30x30_s"] = round(study.wall_s, 3)
+    summary = study.to_json()
+    out["study_activities_per_session"] = summary["activities_per_session"]
+    out["targets"] = {
+        "session_30min_s": 1.0,
+        "study_30x30_s": 60.0,
+        "longterm_30d_3u_s": 60.0,
+        "longterm_peak_rss_mb": 300.0,
+    }
+    print(json.dumps(out))
+
+
+if __name__ == "__main__":
+    main()
