@@ -24,16 +24,19 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pydantic import BaseModel
 
 from dms import keys
-from dms.assembly import Stack, build_stack
 from dms.clock import VirtualClock
 from dms.config import Settings
-from dms.controller import TickRecord
 from dms.messages import Decision, RobotCommand, UserPerception
 from sim.user import SimulatedUser
+
+if TYPE_CHECKING:
+    from dms.assembly import Stack
+    from dms.controller import TickRecord
 
 ScriptedAction = Callable[[], None]
 
@@ -66,6 +69,7 @@ class Simulation:
         workdir: Path | None = None,
         with_memory: bool = True,
     ) -> None:
+        from dms.assembly import build_stack
         from sim.robot import SimRobot
 
         settings = settings or Settings()

@@ -25,12 +25,14 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dms.config import Settings
-from dms.controller import TickRecord
 from sim.persona import WEEKDAYS, Persona, load_persona, shipped_personas
 from sim.user import SimulatedUser
+
+if TYPE_CHECKING:
+    from dms.controller import TickRecord
 
 IDLE_STEP_S = 60.0
 SAMPLE_EVERY_S = 300.0

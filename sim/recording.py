@@ -3,9 +3,10 @@
 :class:`McapRecorder` writes every sample under ``robots/<id>/**`` as a JSON message
 on a channel named by its key, with the JSON Schema of the message when the key is
 one of CONTRACT.md's (so Foxglove shows typed fields). Chunks are small and
-uncompressed and each completed chunk is flushed to the file: a recording cut short
-(the recorder killed, the disk full, a copy interrupted) loses at most its last chunk, and :func:`read_recording` reads every
-complete record before the cut and says where it ended.
+uncompressed and the file is flushed after each message: a recording cut short (the
+recorder killed, the disk full, a copy interrupted) loses at most its last chunk, and
+:func:`read_recording` reads every complete record before the cut and says where it
+ended.
 """
 
 from __future__ import annotations
