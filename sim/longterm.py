@@ -183,7 +183,7 @@ def run_longterm(
     idle_step_s: float = IDLE_STEP_S,
 ) -> LongtermResult:
     """Simulate ``days`` of robot life with ``users`` visitors; plots go to ``out``."""
-    from sim.agenda_link import daily_reminder
+    from sim.adapters import daily_reminder
     from sim.harness import Simulation
 
     wall = time.perf_counter()

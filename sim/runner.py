@@ -165,7 +165,7 @@ class _Player:
         return f"{self.loaded.path}:{line}: timeline.{index}"
 
     def _agenda(self, index: int, step: Step) -> None:
-        from sim.agenda_link import add_agenda_item
+        from sim.adapters import add_agenda_item
 
         spec = step.agenda
         assert spec is not None
@@ -269,6 +269,11 @@ def run_scenario(path_or_name: str | Path) -> ScenarioResult:
         with_memory=scenario.with_memory,
     )
     with sim:
+        if scenario.profiles:
+            from sim.adapters import seed_profile
+
+            for user_id, fields in scenario.profiles.items():
+                seed_profile(sim.stack, user_id, dict(fields), sim.now())
         player = _Player(sim, loaded)
         state_times = sorted(
             {e.at for e in scenario.expect if e.at is not None}

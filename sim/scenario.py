@@ -17,7 +17,8 @@ a list of expectations::
       - {state: {field: activity.name, equals: null}, at: 40}
       - {never: {reason: motivation_changed}}
 
-Each timeline step does one thing: ``arrive``, ``ready``, ``leave``, ``say``, ``tap``,
+``profiles`` stores profile fields before the run. Each timeline step does one
+thing: ``arrive``, ``ready``, ``leave``, ``say``, ``tap``,
 ``touch``, ``request``, ``params``, ``perception`` (``stop``: the perception module
 stops publishing, so its input goes stale; ``lost``: its liveliness token goes away;
 ``resume``), ``agenda`` (add a reminder or event), ``visitor`` (a persona acts by
@@ -289,6 +290,8 @@ class Scenario(_Spec):
     settings: dict[str, Any] = Field(default_factory=dict)
     """Merged over the simulation's defaults, then validated as dms.config.Settings."""
     with_memory: bool = True
+    profiles: dict[UserId, dict[str, ParamValue]] = Field(default_factory=dict)
+    """Profile fields stored before the run (e.g. ``alice: {proactivity: high}``)."""
     timeline: list[Step] = Field(default_factory=list)
     expect: list[Expectation] = Field(default_factory=list)
 
