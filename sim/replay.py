@@ -142,6 +142,7 @@ def replay(path: Path, seed: int = 0, settings: Settings | None = None) -> Repla
     inputs: list[tuple[datetime, str, BaseModel]] = []
     recorded: list[Decision] = []
     tick_times: list[datetime] = []
+    first_state: dict[str, Any] | None = None
     rejected = 0
     for message in recording.messages:
         at = _ns_to_dt(message.log_time_ns)
@@ -160,6 +161,8 @@ def replay(path: Path, seed: int = 0, settings: Settings | None = None) -> Repla
             when = _parse_time(str(message.payload.get("time", "")))
             if when is not None:
                 tick_times.append(when)
+                if first_state is None:
+                    first_state = message.payload
     if not inputs and not recorded and not tick_times:
         raise RecordingError(f"{path}: the recording holds no inputs, decisions or states")
     times = [t for t, _, _ in inputs] + tick_times
@@ -190,6 +193,7 @@ def replay(path: Path, seed: int = 0, settings: Settings | None = None) -> Repla
         sim.run_until(offset(end) + 0.001)
         replayed = [timed.decision for timed in sim.decisions]
         tick_count = sim.ticks
+    replayed = _skip_running_at_start(first_state, recorded, replayed, notes)
     differences = _compare(recorded, replayed)
     return ReplayReport(
         file=path,
@@ -204,6 +208,30 @@ def replay(path: Path, seed: int = 0, settings: Settings | None = None) -> Repla
         span_s=(end - start).total_seconds(),
         notes=notes,
     )
+
+
+def _skip_running_at_start(
+    first_state: dict[str, Any] | None,
+    recorded: list[Decision],
+    replayed: list[Decision],
+    notes: list[str],
+) -> list[Decision]:
+    """Leave out the replay's start of what already ran when the recording began.
+
+    A recording that starts while an activity runs holds no decision for it; the fresh
+    controller of the replay decides to start it at its first tick. That start is the
+    recording's initial state, not a difference.
+    """
+    activity = (first_state or {}).get("activity")
+    if not isinstance(activity, dict) or not replayed:
+        return replayed
+    name = activity.get("name")
+    first = replayed[0]
+    recorded_start = any(d.action == "start" and d.activity == name for d in recorded[:1])
+    if first.action == "start" and first.activity == name and not recorded_start:
+        notes.append(f"the recording starts while {name} runs: its start is not compared")
+        return replayed[1:]
+    return replayed
 
 
 def _encode(payload: Any) -> bytes:

@@ -15,7 +15,7 @@ and the simulated robot did:
 - activities per session: activities started for the participant (menus,
   notifications, waiting and sleeping not counted);
 - activity loading time: from the ``start`` decision to the activity's first command
-  to the robot;
+  to the robot (0 when it is sent in the tick that started it);
 - activity execution time: from ``start`` to ``complete``, ``cancel`` or ``fail``;
 - time to change activity: from the end of one activity to the start of the next
   (feedback question, menus and general questions in between);
@@ -77,6 +77,7 @@ class SessionObserver:
         self._started: dict[str, float] = {}
         self._waiting_load: float | None = None
         self._last_end: float | None = None
+        self._last_command_t: float | None = None
 
     def on_decision(self, timed: TimedDecision) -> None:
         d, t, m = timed.decision, timed.t, self.metrics
@@ -92,7 +93,13 @@ class SessionObserver:
         if d.action == "start":
             m.activities += 1
             self._started[name] = t
-            self._waiting_load = t
+            if self._last_command_t == t:
+                # Decisions are reported after their tick: a command sent in the same tick
+                # came from the activity as it started.
+                m.load_times.append(0.0)
+                self._waiting_load = None
+            else:
+                self._waiting_load = t
             if self._last_end is not None:
                 m.change_times.append(t - self._last_end)
                 self._last_end = None
@@ -111,6 +118,7 @@ class SessionObserver:
                 m.other_failures += 1
 
     def on_command(self, command: RobotCommand, now: datetime, t: float) -> None:
+        self._last_command_t = t
         if self._waiting_load is not None:
             self.metrics.load_times.append(t - self._waiting_load)
             self._waiting_load = None

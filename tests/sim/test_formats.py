@@ -107,15 +107,17 @@ def test_session_observer_measures_table_4() -> None:
         (420.0, _d("fail", "bingo", "activity_error", "robot", "not loaded: broken")),
     ]
     for t, decision in feed:
+        if decision.activity == "jokes":
+            observer.on_command(None, None, t)  # type: ignore[arg-type]
         observer.on_decision(TimedDecision(t, decision))
-        if decision.action == "start":
+        if decision.action == "start" and decision.activity != "jokes":
             observer.on_command(None, None, t + 0.5)  # type: ignore[arg-type]
     m = observer.metrics
     assert (m.questions, m.activities, m.robot_decisions, m.user_selections) == (1, 2, 1, 1)
     assert m.cancels == 1 and m.not_loaded == 1 and m.other_failures == 0
     assert m.activity_times == [186.0, 170.0]
     assert m.change_times == [30.0]
-    assert m.load_times == [0.5, 0.5]
+    assert m.load_times == [0.5, 0.0]
     result = StudyResult([m, m], 1.0, 30.0, "moderate", 0)
     summary = result.to_json()
     assert summary["activities_per_session"] == 2.0
