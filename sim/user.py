@@ -270,7 +270,7 @@ class SimulatedUser:
     def _choose_answer(self, question: _Question) -> str:
         choices = question.choices
         lowered = {choice.lower() for choice in choices}
-        if lowered & CONFIRM_WORDS and lowered <= CONFIRM_WORDS | {"yes", "no"}:
+        if lowered & {"stop", "continue"} and lowered <= CONFIRM_WORDS:
             stop = self._wants_stop is not None and self._wants_stop == self.activity
             if stop and self.rng.random() < self.persona.patience.continue_rate:
                 stop = False
