@@ -87,6 +87,8 @@ class LongtermResult:
     decisions: int
     samples: list[tuple[float, dict[str, float], float]] = field(repr=False)
     spans: list[tuple[str, float, float]] = field(repr=False)
+    presence: list[tuple[int, float, float]] = field(repr=False, default_factory=list)
+    """(user index, arrival, departure) of every visit, in seconds from the start."""
     plots: list[Path] = field(default_factory=list)
 
     def to_json(self) -> dict[str, Any]:
@@ -239,6 +241,7 @@ def run_longterm(
         decisions=decisions,
         samples=tracker.samples,
         spans=tracker.spans,
+        presence=[(v.user, v.start_s, v.end_s) for v in visits],
     )
     if out is not None:
         from sim.plots import write_plots

@@ -42,12 +42,21 @@ def write_plots(result: LongtermResult, out: Path) -> list[Path]:
     _save(fig, paths[0])
     plt.close(fig)
 
+    palette = matplotlib.colormaps["tab20"]
     activities = sorted({name for name, _, _ in result.spans})
-    fig, ax = plt.subplots(figsize=(12, max(3.0, 0.4 * len(activities) + 1)))
+    colour = {name: palette(i % 20) for i, name in enumerate(sorted(result.activity_seconds))}
+    fig, ax = plt.subplots(figsize=(12, max(3.0, 0.4 * (len(activities) + 1) + 1)))
     for row, name in enumerate(activities):
         bars = [(t0 / day, (t1 - t0) / day) for n, t0, t1 in result.spans if n == name]
-        ax.broken_barh(bars, (row - 0.4, 0.8))
-    ax.set_yticks(range(len(activities)), activities)
+        ax.broken_barh(bars, (row - 0.4, 0.8), color=colour.get(name))
+    present_row = len(activities)
+    for user, t0, t1 in result.presence:
+        ax.broken_barh(
+            [(t0 / day, (t1 - t0) / day)],
+            (present_row - 0.4, 0.8),
+            color=palette((2 * user + 1) % 20),
+        )
+    ax.set_yticks(range(len(activities) + 1), [*activities, "user present"])
     ax.set_xlabel("day")
     ax.set_xlim(0, result.days)
     ax.set_title("Activity timeline")
@@ -63,13 +72,13 @@ def write_plots(result: LongtermResult, out: Path) -> list[Path]:
         values = [
             result.activity_seconds_by_hour.get(str(h), {}).get(name, 0.0) / 3600 for h in hours
         ]
-        ax.bar(hours, values, bottom=bottom_h, label=name)
+        ax.bar(hours, values, bottom=bottom_h, label=name, color=colour.get(name))
         bottom_h = [b + v for b, v in zip(bottom_h, values, strict=True)]
     ax.set_xticks(hours)
     ax.set_xlabel("hour of day")
     ax.set_ylabel("hours over the run")
     ax.set_title("Activity by hour of day")
-    ax.legend(loc="upper right", fontsize="small", ncols=2)
+    ax.legend(loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize="small")
     fig.tight_layout()
     _save(fig, paths[2])
     plt.close(fig)
