@@ -257,6 +257,7 @@ def run_study(
     results: list[SessionMetrics] = []
     start = datetime(2026, 11, 23, 9, 0, tzinfo=UTC)
     with Simulation(settings, seed=seed, start=start) as sim:
+        sim.idle_step_s = 10.0  # between participants nobody is there (see sim.harness)
         observer = SessionObserver()
         sim.decision_listeners.append(lambda timed: observer.on_decision(timed))
         sim.command_listeners.append(lambda cmd, now: observer.on_command(cmd, now, sim.t))
