@@ -1,0 +1,246 @@
+"""Expression arbitration (the paper's expression manager): one command per channel.
+
+Activities and the controller's dialogs ask for robot commands through
+:meth:`ExpressionArbiter.request` and get a :class:`CommandHandle` whose status they
+watch. The arbiter sends at most one command per channel (speech, screen, led, motion,
+media) at a time, so commands from several sources never collide: the others wait in
+a queue ordered by priority, then by arrival. A HIGH-priority command (a notification,
+the controller's "continue or stop?") preempts a NORMAL one on its channel; the
+interrupted command goes back to the head of the queue and is sent again, from the
+start, once the channel is free (when the interrupted source resumes).
+
+A command the robot never acknowledges is timed out after ``ack_timeout_s``: its handle
+ends ``timed_out`` and the activity that issued it fails cleanly.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from datetime import datetime, timedelta
+from enum import IntEnum, StrEnum
+from typing import Any
+
+from dms.messages import Channel, RobotCommand
+from dms.ports import RobotPort
+
+
+class Priority(IntEnum):
+    """How urgently a command wants its channel."""
+
+    NORMAL = 0
+    """Activities: waits its turn, may be preempted."""
+    HIGH = 1
+    """Notifications and the controller's dialogs: preempts NORMAL commands."""
+
+
+class CommandStatus(StrEnum):
+    """Where a requested command stands."""
+
+    QUEUED = "queued"
+    """Waiting for its channel (or preempted and waiting to be repeated)."""
+    SENT = "sent"
+    """Sent to the robot, not yet acknowledged."""
+    STARTED = "started"
+    """The robot reported it started."""
+    DONE = "done"
+    """The robot reported it finished."""
+    INTERRUPTED = "interrupted"
+    """Withdrawn by its source (or stopped by the robot) before it finished."""
+    FAILED = "failed"
+    """The robot reported it could not execute it."""
+    TIMED_OUT = "timed_out"
+    """The robot never acknowledged it within the acknowledgement timeout."""
+
+
+FINAL_STATUSES = frozenset(
+    {CommandStatus.DONE, CommandStatus.INTERRUPTED, CommandStatus.FAILED, CommandStatus.TIMED_OUT}
+)
+
+
+@dataclass(eq=False)
+class CommandHandle:
+    """One requested command: what its source watches until it is final."""
+
+    source: str
+    channel: Channel
+    action: str
+    args: dict[str, Any]
+    priority: Priority
+    status: CommandStatus = CommandStatus.QUEUED
+    command_id: str | None = None
+    """The id of the last send (a repeated command gets a new id)."""
+    sent_at: datetime | None = None
+    sends: int = 0
+    detail: str | None = None
+    order: int = 0
+
+    @property
+    def finished(self) -> bool:
+        """True once the status is final (done, interrupted, failed, timed out)."""
+        return self.status in FINAL_STATUSES
+
+    @property
+    def ok(self) -> bool:
+        return self.status is CommandStatus.DONE
+
+
+@dataclass
+class _Channel:
+    active: CommandHandle | None = None
+    queue: list[CommandHandle] = field(default_factory=list)
+
+
+class ExpressionArbiter:
+    """Serialises robot commands per channel; see the module docstring."""
+
+    def __init__(
+        self,
+        robot: RobotPort,
+        on_command: Callable[[RobotCommand], None],
+        ack_timeout_s: float = 10.0,
+    ) -> None:
+        self.robot = robot
+        self.on_command = on_command
+        self.ack_timeout = timedelta(seconds=ack_timeout_s)
+        self._channels: dict[str, _Channel] = {}
+        self._by_id: dict[str, CommandHandle] = {}
+        self._ids = itertools.count(1)
+        self._order = itertools.count()
+        self.sent = 0
+        self.preemptions = 0
+        self.timeouts = 0
+
+    # ------------------------------------------------------------ requests
+
+    def request(
+        self,
+        source: str,
+        channel: Channel,
+        action: str,
+        args: Mapping[str, Any],
+        now: datetime,
+        priority: Priority = Priority.NORMAL,
+    ) -> CommandHandle:
+        """Queue a command for ``channel``; it is sent at once if the channel is free."""
+        handle = CommandHandle(
+            source, channel, action, dict(args), priority, order=next(self._order)
+        )
+        lane = self._channels.setdefault(channel, _Channel())
+        active = lane.active
+        if active is not None and priority > active.priority:
+            self._preempt(lane, active, now)
+        lane.queue.append(handle)
+        lane.queue.sort(key=lambda h: (-h.priority, h.order))
+        self._dispatch(lane, now)
+        return handle
+
+    def interrupt(self, handle: CommandHandle, now: datetime) -> None:
+        """Withdraw one command: dequeue it, or stop it on the robot."""
+        if handle.finished:
+            return
+        lane = self._channels.get(handle.channel)
+        if lane is None:
+            return
+        if handle in lane.queue:
+            lane.queue.remove(handle)
+        if lane.active is handle:
+            lane.active = None
+            if handle.command_id is not None:
+                self.robot.interrupt(handle.command_id, now)
+        handle.status = CommandStatus.INTERRUPTED
+        self._dispatch(lane, now)
+
+    def interrupt_source(self, source: str, now: datetime) -> None:
+        """Withdraw every queued and running command of ``source``."""
+        for lane in list(self._channels.values()):
+            for handle in [h for h in [lane.active, *lane.queue] if h is not None]:
+                if handle.source == source:
+                    self.interrupt(handle, now)
+
+    def active(self, channel: str) -> CommandHandle | None:
+        """The command the robot is executing on ``channel``, if any."""
+        lane = self._channels.get(channel)
+        return lane.active if lane is not None else None
+
+    def pending(self, source: str | None = None) -> list[CommandHandle]:
+        """Unfinished commands (of ``source``), running ones first."""
+        out: list[CommandHandle] = []
+        for lane in self._channels.values():
+            for handle in [lane.active, *lane.queue]:
+                if handle is not None and (source is None or handle.source == source):
+                    out.append(handle)
+        return out
+
+    # ------------------------------------------------------------ the robot
+
+    def update(self, now: datetime) -> None:
+        """Collect the robot's feedback, time out silent commands, send what can go."""
+        for feedback in self.robot.poll(now):
+            handle = self._by_id.get(feedback.id)
+            if handle is None or handle.command_id != feedback.id or handle.finished:
+                continue
+            if feedback.status == "started":
+                handle.status = CommandStatus.STARTED
+                continue
+            self._by_id.pop(feedback.id, None)
+            handle.detail = feedback.detail
+            handle.status = {
+                "done": CommandStatus.DONE,
+                "interrupted": CommandStatus.INTERRUPTED,
+                "failed": CommandStatus.FAILED,
+            }[feedback.status]
+            self._release(handle, now)
+        for lane in self._channels.values():
+            active = lane.active
+            if (
+                active is not None
+                and active.status is CommandStatus.SENT
+                and active.sent_at is not None
+                and now - active.sent_at >= self.ack_timeout
+            ):
+                self.timeouts += 1
+                active.status = CommandStatus.TIMED_OUT
+                active.detail = f"not acknowledged within {self.ack_timeout.total_seconds():g} s"
+                if active.command_id is not None:
+                    self._by_id.pop(active.command_id, None)
+                    self.robot.interrupt(active.command_id, now)
+                lane.active = None
+        for lane in self._channels.values():
+            self._dispatch(lane, now)
+
+    def _release(self, handle: CommandHandle, now: datetime) -> None:
+        lane = self._channels.get(handle.channel)
+        if lane is not None and lane.active is handle:
+            lane.active = None
+            self._dispatch(lane, now)
+
+    def _preempt(self, lane: _Channel, active: CommandHandle, now: datetime) -> None:
+        """Stop ``active`` for a more urgent command; it is queued again to be repeated."""
+        self.preemptions += 1
+        if active.command_id is not None:
+            self._by_id.pop(active.command_id, None)
+            self.robot.interrupt(active.command_id, now)
+        lane.active = None
+        active.status = CommandStatus.QUEUED
+        lane.queue.append(active)
+
+    def _dispatch(self, lane: _Channel, now: datetime) -> None:
+        if lane.active is not None or not lane.queue:
+            return
+        lane.queue.sort(key=lambda h: (-h.priority, h.order))
+        handle = lane.queue.pop(0)
+        command_id = f"cmd-{next(self._ids)}"
+        handle.command_id = command_id
+        handle.sends += 1
+        handle.sent_at = now
+        handle.status = CommandStatus.SENT
+        lane.active = handle
+        self._by_id[command_id] = handle
+        command = RobotCommand(
+            id=command_id, channel=handle.channel, action=handle.action, args=handle.args
+        )
+        self.sent += 1
+        self.on_command(command)
+        self.robot.send(command, now)

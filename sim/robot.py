@@ -1,0 +1,142 @@
+"""The simulated Mini: executes robot commands with plausible durations.
+
+It implements :class:`dms.ports.RobotPort`. Every command reports ``started`` at once,
+then ``done`` when its duration has passed on the caller's clock: speech by word count
+at the speaking rate, media by ``args.duration_s``, motions from a table, screen and
+LED commands immediately. ``interrupt`` stops a command (``interrupted``).
+:meth:`SimRobot.set_fault` makes a channel fail its commands or drop them (never
+acknowledge), to test that the expression arbiter times them out.
+"""
+
+from __future__ import annotations
+
+import random
+from dataclasses import dataclass
+from datetime import datetime, timedelta
+from typing import Literal
+
+from dms.messages import RobotCommand, RobotFeedback
+
+Fault = Literal["fail", "hang"]
+
+MOTION_SECONDS: dict[str, float] = {
+    "nod": 1.5,
+    "shake_head": 1.5,
+    "wave": 2.5,
+    "bow": 2.0,
+    "look_around": 3.0,
+    "think": 2.0,
+    "celebrate": 3.0,
+    "shrug": 1.5,
+    "sleep_pose": 2.0,
+    "wake_up": 2.0,
+    "dance_step": 4.0,
+    "clap": 2.0,
+}
+"""How long each gesture takes; unknown gestures take ``DEFAULT_MOTION_S``."""
+
+DEFAULT_MOTION_S = 2.0
+DEFAULT_MEDIA_S = 30.0
+
+
+@dataclass
+class _Running:
+    command: RobotCommand
+    ends: datetime
+
+
+class SimRobot:
+    """An in-process robot on the caller's clock (real or virtual)."""
+
+    def __init__(self, rng_seed: int = 0, speaking_rate_wpm: float = 150.0) -> None:
+        if speaking_rate_wpm <= 0:
+            raise ValueError("speaking_rate_wpm must be positive")
+        self.rng = random.Random(rng_seed)
+        self.speaking_rate_wpm = speaking_rate_wpm
+        self._running: dict[str, _Running] = {}
+        self._out: list[tuple[datetime, int, RobotFeedback]] = []
+        self._seq = 0
+        self._faults: dict[str, Fault] = {}
+        self.log: list[tuple[datetime, RobotCommand]] = []
+        """Every command received, with when: for tests and the stepper."""
+        self.screen: dict[str, object] = {}
+        """What the screen shows now (the last ``show``)."""
+        self.leds: dict[str, object] = {}
+
+    # ------------------------------------------------------------ faults
+
+    def set_fault(self, channel: str, fault: Fault | None) -> None:
+        """From now on, ``channel``'s commands fail (``fail``) or are never acknowledged
+        (``hang``); ``None`` heals it. ``channel="*"`` applies to every channel."""
+        if fault is None:
+            self._faults.pop(channel, None)
+        else:
+            self._faults[channel] = fault
+
+    def _fault(self, channel: str) -> Fault | None:
+        return self._faults.get(channel, self._faults.get("*"))
+
+    # ------------------------------------------------------------ the port
+
+    def duration(self, command: RobotCommand) -> float:
+        """Seconds ``command`` takes on this robot."""
+        args = command.args
+        if command.channel == "speech":
+            words = len(str(args.get("text", "")).split())
+            return 0.3 + 60.0 * words / self.speaking_rate_wpm
+        if command.channel == "media":
+            return _seconds(args.get("duration_s"), DEFAULT_MEDIA_S)
+        if command.channel == "motion":
+            name = str(args.get("name", ""))
+            base = MOTION_SECONDS.get(name, DEFAULT_MOTION_S)
+            return _seconds(args.get("duration_s"), base)
+        return 0.0
+
+    def send(self, command: RobotCommand, now: datetime) -> None:
+        self.log.append((now, command))
+        fault = self._fault(command.channel)
+        if fault == "hang":
+            return
+        self._emit(now, command.id, "started")
+        if fault == "fail":
+            self._emit(now, command.id, "failed", "simulated fault")
+            return
+        if command.channel == "screen":
+            self.screen = {"action": command.action, **command.args}
+        elif command.channel == "led":
+            self.leds = {"action": command.action, **command.args}
+        ends = now + timedelta(seconds=self.duration(command))
+        self._running[command.id] = _Running(command, ends)
+
+    def interrupt(self, command_id: str, now: datetime) -> None:
+        if self._running.pop(command_id, None) is not None:
+            self._emit(now, command_id, "interrupted")
+
+    def poll(self, now: datetime) -> list[RobotFeedback]:
+        for command_id, running in list(self._running.items()):
+            if running.ends <= now:
+                del self._running[command_id]
+                self._emit(running.ends, command_id, "done")
+        due = sorted(item for item in self._out if item[0] <= now)
+        self._out = [item for item in self._out if item[0] > now]
+        return [feedback for _, _, feedback in due]
+
+    @property
+    def busy(self) -> list[RobotCommand]:
+        """The commands executing now."""
+        return [running.command for running in self._running.values()]
+
+    def _emit(
+        self, when: datetime, command_id: str, status: str, detail: str | None = None
+    ) -> None:
+        self._seq += 1
+        feedback = RobotFeedback.model_validate(
+            {"id": command_id, "status": status, "detail": detail}
+        )
+        self._out.append((when, self._seq, feedback))
+
+
+def _seconds(value: object, default: float) -> float:
+    if isinstance(value, int | float) and not isinstance(value, bool) and value >= 0:
+        return float(value)
+    return default
