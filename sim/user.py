@@ -149,19 +149,24 @@ class SimulatedUser:
         """Hear and see one robot command."""
         if not self.present or not self.ready:
             return
+        question = self._question
+        pending = question is not None and not question.answered
         if command.channel == "speech" and command.action == "say":
             text = str(command.args.get("text", ""))
             if "?" in text:
+                if pending and question is not None and question.choices:
+                    return  # the choices are on the screen already: the same question
                 self._ask(text, (), now)
         elif command.channel == "screen" and command.action in ("show", "menu"):
             choices = _choices(command.args.get("choices"))
             if choices:
+                if pending and question is not None and not question.choices:
+                    # The screen shows the choices of what was just said (the channels
+                    # are served apart, so they need not arrive at the same instant).
+                    question.choices = choices
+                    return
                 text = str(command.args.get("text", command.args.get("title", "")))
-                question = self._question
-                if question is not None and not question.answered and question.asked == now:
-                    question.choices = choices  # the screen shows the choices of what was said
-                else:
-                    self._ask(text, choices, now)
+                self._ask(text, choices, now)
 
     def _ask(self, text: str, choices: tuple[str, ...], now: datetime) -> None:
         question = self._question = _Question(text, now, choices)

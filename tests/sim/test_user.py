@@ -149,3 +149,15 @@ def test_leaving_forgets_pending_answers() -> None:
     assert not user.perception().present
     user.on_command(_say("Are you there?"), now)  # nobody hears it
     assert user.next_due() is None
+
+
+def test_choices_shown_before_the_question_is_spoken_still_count() -> None:
+    # The arbiter serves each channel apart: the screen may show the choices before
+    # the speech channel is free to say the question.
+    user = SimulatedUser(_persona(), random.Random(9))
+    now = _ready(user)
+    user.on_command(_show(["bingo", "quiz"]), now)
+    user.on_command(_say("What would you like to do?"), now + timedelta(seconds=0.5))
+    [(_, answer)] = _run(user, now + timedelta(seconds=10))
+    assert isinstance(answer, Speech) and answer.text == "quiz"
+    assert user.stats.questions_heard == 1
