@@ -268,6 +268,7 @@ def run_scenario(path_or_name: str | Path) -> ScenarioResult:
         start=scenario.start,
         with_memory=scenario.with_memory,
     )
+    sim.idle_step_s = scenario.idle_step_s
     with sim:
         if scenario.profiles:
             from sim.adapters import seed_profile

@@ -290,6 +290,8 @@ class Scenario(_Spec):
     settings: dict[str, Any] = Field(default_factory=dict)
     """Merged over the simulation's defaults, then validated as dms.config.Settings."""
     with_memory: bool = True
+    idle_step_s: Annotated[float, Field(gt=0.0, le=3600.0)] | None = None
+    """Tick this far apart while nobody is there (long idle scenarios; see sim.harness)."""
     profiles: dict[UserId, dict[str, ParamValue]] = Field(default_factory=dict)
     """Profile fields stored before the run (e.g. ``alice: {proactivity: high}``)."""
     timeline: list[Step] = Field(default_factory=list)
