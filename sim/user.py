@@ -331,8 +331,13 @@ def _choices(raw: object) -> tuple[str, ...]:
 
 
 def _choice_activity(choice: str) -> str | None:
+    """The activity a menu choice names (its name, or a synonym such as "music")."""
     name = choice.strip().lower().replace(" ", "_")
-    return name if name in ACTIVITIES else None
+    if name in ACTIVITIES:
+        return name
+    from activities.synonyms import match_activity
+
+    return match_activity(choice)
 
 
 def _is_activity(text: str) -> bool:
