@@ -21,8 +21,8 @@ def add_agenda_item(agenda: Any, spec: AgendaSpec, when: datetime, now: datetime
     raise SimError("the agenda cannot be scripted yet")
 
 
-def daily_reminder(agenda: Any, user_id: str, when: datetime, now: datetime) -> None:
-    """A reminder for ``user_id`` at ``when`` (long-term runs: one a day)."""
+def daily_reminder(agenda: Any, user_id: str, hour: int, minute: int, now: datetime) -> None:
+    """A reminder for ``user_id`` every day at ``hour:minute`` UTC (long-term runs)."""
     raise SimError("the agenda cannot be scripted yet")
 
 

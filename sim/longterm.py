@@ -3,7 +3,8 @@
 The robot runs on the virtual clock day and night. Each user (a shipped persona,
 taken in order) visits on the days and at the times of its persona, a little earlier
 or later each time; two visits never overlap (the later one waits). Each user has a
-daily reminder in the agenda, due ten minutes into their first visit of the day.
+daily reminder in the agenda ten minutes after the time of their first visit; it
+waits up to two hours for them to be there.
 
 While someone is in front of the robot, or a dialog is open, the controller ticks at
 2 Hz as in the daemon. While nobody is there it ticks every ``idle_step_s`` (60 s)
@@ -205,15 +206,13 @@ def run_longterm(
             SimulatedUser(persona, random.Random(rng.random()), user_id)
             for persona, user_id in zip(personas, ids, strict=True)
         ]
-        first_of_day: set[tuple[int, int]] = set()
+        if sim.stack.agenda is not None:
+            for persona, user_id in zip(personas, ids, strict=True):
+                if persona.visits:
+                    first = persona.visits[0].at
+                    minute = first.hour * 60 + first.minute + 10
+                    daily_reminder(sim.stack.agenda, user_id, minute // 60 % 24, minute % 60, START)
         for visit in visits:
-            day = int(visit.start_s // 86400)
-            if (visit.user, day) not in first_of_day:
-                first_of_day.add((visit.user, day))
-                if sim.stack.agenda is not None:
-                    daily_reminder(
-                        sim.stack.agenda, ids[visit.user], sim.when(visit.start_s + 600), START
-                    )
             person = people[visit.user]
             sim.at(visit.start_s, lambda p=person: sim.seat(p))  # type: ignore[misc]
             sim.at(visit.end_s, sim.unseat)

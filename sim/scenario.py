@@ -102,7 +102,7 @@ class AgendaSpec(_Spec):
     in_s: Seconds = 0.0
     text: str | None = None
     activity: str | None = None
-    priority: Literal["low", "normal", "high"] = "normal"
+    priority: Literal["normal", "high"] = "normal"
 
     @field_validator("activity")
     @classmethod
