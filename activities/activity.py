@@ -1,0 +1,147 @@
+"""A running activity: one behavior's state machine driven by the manager's commands."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from datetime import datetime
+from enum import Enum
+from typing import Any
+
+from activities.engine import Event, Node, Runtime, Status
+
+
+class ActivityStatus(Enum):
+    """Where a running activity stands, as its manager reports it."""
+
+    RUNNING = "running"
+    """Started and ticking; not finished."""
+    PAUSED = "paused"
+    """Frozen by ``pause``: nothing happens until ``resume``."""
+    COMPLETED = "completed"
+    """Reached one of its outcomes; ``result.outcome`` names it."""
+    FAILED = "failed"
+    """Could not go on (a robot command failed or timed out); ``result.error`` says why."""
+    CANCELLED = "cancelled"
+    """Stopped by ``cancel`` (preemption from outside)."""
+
+
+@dataclass(frozen=True)
+class ActivityResult:
+    """How an activity ended (or ``outcome=""`` while it runs)."""
+
+    outcome: str = ""
+    redirect: str | None = None
+    """The activity to run next (the menu's choice): reason ``activity_redirect``."""
+    error: str | None = None
+    data: dict[str, Any] = field(default_factory=dict)
+    """The root userdata at the end (scores, answers...)."""
+
+
+class Activity:
+    """One behavior instance: start, tick, pause, resume, cancel, deliver events."""
+
+    def __init__(self, name: str, root: Node, runtime: Runtime) -> None:
+        self.name = name
+        self.root = root
+        self.runtime = runtime
+        self.userdata: dict[str, Any] = {}
+        self.status: ActivityStatus | None = None
+        self._result = ActivityResult()
+        self.started_at: datetime | None = None
+        self.ticks = 0
+
+    @property
+    def result(self) -> ActivityResult:
+        return self._result
+
+    @property
+    def finished(self) -> bool:
+        return self.status in (
+            ActivityStatus.COMPLETED,
+            ActivityStatus.FAILED,
+            ActivityStatus.CANCELLED,
+        )
+
+    def start(self, now: datetime) -> ActivityStatus:
+        """Enter the first state and run the first tick (commands go out at once)."""
+        if self.status is not None:
+            return self.status
+        self.started_at = now
+        self.status = ActivityStatus.RUNNING
+        self.root.reset()
+        self.root.bind(self.userdata)
+        return self.tick(now)
+
+    def tick(self, now: datetime) -> ActivityStatus:
+        """Advance the machine once; never blocks."""
+        if self.status is None:
+            return self.start(now)
+        if self.finished or self.status is ActivityStatus.PAUSED:
+            return self.status
+        self.ticks += 1
+        status = self.root.tick(now)
+        if status is Status.DONE:
+            self._end(ActivityStatus.COMPLETED, self.root.outcome or "", None)
+        elif status is Status.FAILED:
+            self._end(ActivityStatus.FAILED, "failed", self.root.error or "failed")
+        return self.status
+
+    def pause(self, now: datetime) -> None:
+        """Freeze at any depth; commands in flight are withdrawn (history keeps the state)."""
+        if self.status is ActivityStatus.RUNNING:
+            self.root.pause(now)
+            self.status = ActivityStatus.PAUSED
+
+    def resume(self, now: datetime) -> None:
+        """Re-enter the interrupted states; their blocks restart what they were doing."""
+        if self.status is ActivityStatus.PAUSED:
+            self.status = ActivityStatus.RUNNING
+            self.root.resume(now)
+
+    def cancel(self, now: datetime) -> None:
+        """Preempt from outside: stop every active state at once, at every depth."""
+        if self.status is None:
+            self.status = ActivityStatus.CANCELLED
+            self._result = ActivityResult("cancelled", None, None, {})
+            return
+        if self.finished:
+            return
+        self.root.stop(now)
+        self._end(ActivityStatus.CANCELLED, "cancelled", None)
+
+    def deliver(self, event: Event) -> bool:
+        """Offer a perception event; True if a state took it (an answer, a guard)."""
+        if self.status is not ActivityStatus.RUNNING:
+            return False
+        return self.root.deliver(event)
+
+    @property
+    def state_path(self) -> str:
+        """The active states below the root, e.g. ``GAME/ROUNDS/ROUND/ASK``."""
+        return self.root.active_path()
+
+    def structure(self) -> dict[str, Any]:
+        """States, transitions, nesting and the active path: for a live viewer."""
+        return {
+            "name": self.name,
+            "status": self.status.value if self.status is not None else "created",
+            "active_path": self.state_path,
+            "root": self.root.describe(),
+        }
+
+    def _end(self, status: ActivityStatus, outcome: str, error: str | None) -> None:
+        self.status = status
+        self._result = ActivityResult(
+            outcome, self.runtime.redirect, error, _json_safe(self.userdata)
+        )
+
+
+def _json_safe(data: Mapping[str, Any]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, value in data.items():
+        if isinstance(value, str | int | float | bool | type(None)):
+            out[key] = value
+        elif isinstance(value, list | dict):
+            out[key] = value
+    return out

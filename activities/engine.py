@@ -1,0 +1,710 @@
+"""The tick-based state-machine engine: states, userdata and the containers.
+
+A :class:`Node` is a state with outcomes. The framework owns :meth:`Node.tick`; a
+state implements the py_trees-style hooks ``initialise`` (entered), ``update`` (one
+tick, never blocks, returns a :class:`Status`) and ``terminate`` (left, with the new
+status: ``INVALID`` means it was stopped from outside). On top come SMACH's semantics:
+
+- a :class:`StateMachine` follows ``transitions`` from each state's outcome to the
+  next state or to one of its own outcomes;
+- userdata: each container holds a dict; a state sees it through a
+  :class:`UserdataView` limited to its declared ``input_keys``/``output_keys`` and
+  renamed by ``remapping``;
+- a :class:`Concurrence` ticks its states together and ends by its ``outcome_map``
+  (or ``default_outcome`` when all are done and no entry matched);
+- an :class:`Iterator` runs its state once per item;
+- a :class:`Guard` (ROS Commander's tactile guard) stops what it contains when a
+  touch, a keyword or a timer fires;
+- preemption is cooperative and a status, not an exception: :meth:`Node.preempt`
+  marks a state; at its next tick it stops everything below it (any depth) and ends
+  with the outcome ``preempted``. It may be requested any number of times, also
+  before the state's first tick;
+- pause is history: :meth:`Node.pause` freezes the active states at every depth,
+  :meth:`Node.resume` re-enters them and their blocks restart what they were saying.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable, Mapping, MutableMapping, Sequence
+from dataclasses import dataclass, field
+from datetime import datetime, timedelta
+from enum import Enum
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import yaml
+
+from activities.errors import BehaviorError
+from activities.template import PROFILE_NAMESPACES, Missing, lookup, render
+from dms.messages import ScreenChoice, Speech, Touch
+
+if TYPE_CHECKING:
+    from activities.context import ActivityContext
+
+Event = Speech | ScreenChoice | Touch
+PREEMPTED = "preempted"
+"""The outcome of a state that was preempted; every state may end with it."""
+MAX_STEPS_PER_TICK = 200
+"""Instantaneous transitions allowed in one tick before the rest waits for the next."""
+
+
+class Status(Enum):
+    """What a state's ``update`` reports; the framework keeps it in ``Node.status``."""
+
+    INVALID = "invalid"
+    """Not entered yet, or stopped from outside (preempted, cancelled): not running."""
+    RUNNING = "running"
+    """Entered and not finished: tick it again."""
+    DONE = "done"
+    """Finished with an outcome (``Node.outcome``) for its container to follow."""
+    FAILED = "failed"
+    """Could not go on (a robot command failed or timed out): ``Node.error`` says why."""
+
+
+class Runtime:
+    """What the states of one running activity share: context, arguments, content."""
+
+    def __init__(
+        self,
+        ctx: ActivityContext,
+        args: Mapping[str, Any],
+        content_dirs: Sequence[Path] = (),
+    ) -> None:
+        self.ctx = ctx
+        self.args = dict(args)
+        self.content_dirs = tuple(content_dirs)
+        self.redirect: str | None = None
+        self.on_enter: Callable[[Node], None] | None = None
+        """Called when a state is entered (the stepper and tests listen)."""
+
+    def content(self, name: str) -> Any:
+        return _load_content(self.content_dirs, name)
+
+    def resolver(self, ud: Mapping[str, Any]) -> Callable[[str], Any]:
+        """Look up ``path`` in the profiles, args, content files or userdata."""
+        profiles: Mapping[str, Mapping[str, Any]] | None = None
+
+        def resolve(path: str) -> Any:
+            nonlocal profiles
+            parts = path.split(".")
+            head = parts[0]
+            if head in PROFILE_NAMESPACES:
+                if profiles is None:
+                    profiles = self.ctx.params()
+                return lookup(profiles.get(head, {}), parts[1:])
+            if head == "args":
+                return lookup(self.args, parts[1:])
+            if head == "content" and len(parts) >= 2:
+                try:
+                    data = self.content(parts[1])
+                except BehaviorError:
+                    raise Missing(path) from None
+                return lookup(data, parts[2:])
+            return lookup(ud, parts)
+
+        return resolve
+
+    def render(self, value: Any, ud: Mapping[str, Any]) -> Any:
+        return render(value, self.resolver(ud))
+
+
+@functools.lru_cache(maxsize=64)
+def _load_content(dirs: tuple[Path, ...], name: str) -> Any:
+    for directory in dirs:
+        path = directory / f"{name}.yaml"
+        if path.is_file():
+            try:
+                return yaml.safe_load(path.read_text(encoding="utf-8"))
+            except yaml.YAMLError as error:
+                raise BehaviorError(f"{path}: not valid YAML: {error}") from None
+    raise BehaviorError(f"content file {name}.yaml not found")
+
+
+class UserdataView(MutableMapping[str, Any]):
+    """A state's window on its container's userdata (SMACH's Remapper).
+
+    With declared keys, reading a key not in ``input_keys`` (or writing one not in
+    ``output_keys``) raises KeyError; without declarations the state sees everything.
+    ``remapping`` renames the state's keys to the container's.
+    """
+
+    def __init__(
+        self,
+        target: MutableMapping[str, Any],
+        input_keys: Sequence[str] = (),
+        output_keys: Sequence[str] = (),
+        remapping: Mapping[str, str] | None = None,
+    ) -> None:
+        self._target = target
+        self._open = not input_keys and not output_keys
+        self._inputs = frozenset(input_keys) | frozenset(output_keys)
+        self._outputs = frozenset(output_keys)
+        self._remap = dict(remapping or {})
+
+    def _key(self, key: str) -> str:
+        return self._remap.get(key, key)
+
+    def __getitem__(self, key: str) -> Any:
+        if not self._open and key not in self._inputs:
+            raise KeyError(key)
+        return self._target[self._key(key)]
+
+    def __setitem__(self, key: str, value: Any) -> None:
+        if not self._open and key not in self._outputs:
+            raise KeyError(f"{key} is not an output key")
+        self._target[self._key(key)] = value
+
+    def __delitem__(self, key: str) -> None:
+        del self._target[self._key(key)]
+
+    def __iter__(self) -> Any:
+        if self._open:
+            inverse = {v: k for k, v in self._remap.items()}
+            return iter([inverse.get(k, k) for k in self._target])
+        return iter([k for k in self._inputs if self._key(k) in self._target])
+
+    def __len__(self) -> int:
+        return len(list(iter(self)))
+
+
+@dataclass
+class Io:
+    """A state's declared userdata keys and their remapping."""
+
+    input_keys: tuple[str, ...] = ()
+    output_keys: tuple[str, ...] = ()
+    remapping: dict[str, str] = field(default_factory=dict)
+
+
+class Node:
+    """One state. Subclasses implement the hooks; the framework owns ``tick``."""
+
+    kind = "state"
+
+    def __init__(self, name: str, outcomes: Sequence[str], rt: Runtime, io: Io | None = None):
+        self.name = name
+        self.outcomes = tuple(outcomes)
+        self.rt = rt
+        self.io = io or Io()
+        self.status = Status.INVALID
+        self.outcome: str | None = None
+        self.error: str | None = None
+        self.paused = False
+        self.ud: MutableMapping[str, Any] = {}
+        self._preempt_requested = False
+        self.entered = 0
+
+    # ------------------------------------------------------------ hooks
+
+    def initialise(self, now: datetime) -> None:
+        """When entered (also when re-entered by a transition): reset and start."""
+
+    def update(self, now: datetime) -> Status:
+        """One tick: never blocks; return RUNNING, or DONE after setting ``outcome``."""
+        raise NotImplementedError
+
+    def terminate(self, now: datetime, new_status: Status) -> None:
+        """When left: ``INVALID`` means stopped from outside; withdraw what still runs."""
+
+    def on_pause(self, now: datetime) -> None:
+        """Freeze: withdraw robot commands, stop the clocks."""
+
+    def on_resume(self, now: datetime) -> None:
+        """Thaw: restart what was being said or shown, restart the clocks."""
+
+    def on_event(self, event: Event) -> bool:
+        """An event while running; True if this state took it."""
+        return False
+
+    def children(self) -> Sequence[Node]:
+        return ()
+
+    def active_children(self) -> Sequence[Node]:
+        return ()
+
+    # ------------------------------------------------------------ framework
+
+    def bind(self, container_ud: MutableMapping[str, Any]) -> None:
+        """Give the state its view of its container's userdata (before entering)."""
+        self.ud = UserdataView(
+            container_ud, self.io.input_keys, self.io.output_keys, self.io.remapping
+        )
+
+    def tick(self, now: datetime) -> Status:
+        """Enter if needed, honour a preemption request, else update once."""
+        if self.status in (Status.DONE, Status.FAILED):
+            return self.status
+        if self.status is Status.INVALID:
+            if self._preempt_requested:
+                self._preempt_requested = False
+                return self._end(now, Status.DONE, PREEMPTED, enter_terminate=False)
+            self.status = Status.RUNNING
+            self.outcome = None
+            self.error = None
+            self.paused = False
+            self.entered += 1
+            if self.rt.on_enter is not None:
+                self.rt.on_enter(self)
+            self.initialise(now)
+        if self._preempt_requested:
+            self._preempt_requested = False
+            self.stop(now)
+            return self._end(now, Status.DONE, PREEMPTED, enter_terminate=False)
+        if self.paused:
+            return Status.RUNNING
+        status = self.update(now)
+        if status is Status.DONE:
+            if self.outcome is None:
+                self.outcome = self.outcomes[0] if self.outcomes else "done"
+            return self._end(now, Status.DONE, self.outcome)
+        if status is Status.FAILED:
+            return self._end(now, Status.FAILED, None)
+        return Status.RUNNING
+
+    def _end(
+        self, now: datetime, status: Status, outcome: str | None, enter_terminate: bool = True
+    ) -> Status:
+        if enter_terminate:
+            self.terminate(now, status)
+        self.status = status
+        self.outcome = outcome
+        self.paused = False
+        return status
+
+    def fail(self, error: str) -> Status:
+        """For ``update``: end FAILED with ``error``."""
+        self.error = error
+        return Status.FAILED
+
+    def finish(self, outcome: str) -> Status:
+        """For ``update``: end DONE with ``outcome``."""
+        self.outcome = outcome
+        return Status.DONE
+
+    def stop(self, now: datetime) -> None:
+        """Stop from outside, at every depth below: terminate(INVALID)."""
+        if self.status is Status.RUNNING:
+            for child in self.active_children():
+                child.stop(now)
+            self.terminate(now, Status.INVALID)
+        self.status = Status.INVALID
+        self.paused = False
+
+    def reset(self) -> None:
+        """Forget a finished run so the state can be entered again."""
+        self.status = Status.INVALID
+        self.outcome = None
+        self.error = None
+
+    def preempt(self) -> None:
+        """Ask the state to end with ``preempted`` at its next tick (cooperative)."""
+        if self.status is not Status.DONE and self.status is not Status.FAILED:
+            self._preempt_requested = True
+
+    @property
+    def preempt_requested(self) -> bool:
+        return self._preempt_requested
+
+    def pause(self, now: datetime) -> None:
+        if self.status is Status.RUNNING and not self.paused:
+            for child in self.active_children():
+                child.pause(now)
+            self.paused = True
+            self.on_pause(now)
+
+    def resume(self, now: datetime) -> None:
+        if self.status is Status.RUNNING and self.paused:
+            self.paused = False
+            self.on_resume(now)
+            for child in self.active_children():
+                child.resume(now)
+
+    def deliver(self, event: Event) -> bool:
+        """Offer ``event`` to this state and the states active below it."""
+        if self.status is not Status.RUNNING or self.paused:
+            return False
+        if self.on_event(event):
+            return True
+        return any(child.deliver(event) for child in self.active_children())
+
+    def active_path(self) -> str:
+        active = [child for child in self.active_children() if child.status is Status.RUNNING]
+        if not active:
+            return ""
+        parts = []
+        for child in active:
+            below = child.active_path()
+            parts.append(f"{child.name}/{below}" if below else child.name)
+        return ",".join(parts)
+
+    def describe(self) -> dict[str, Any]:
+        """This state's part of ``Activity.structure()``."""
+        out: dict[str, Any] = {
+            "name": self.name,
+            "kind": self.kind,
+            "outcomes": list(self.outcomes),
+            "status": self.status.value,
+            "active": self.status is Status.RUNNING,
+        }
+        if self.paused:
+            out["paused"] = True
+        kids = self.children()
+        if kids:
+            out["states"] = [child.describe() for child in kids]
+        return out
+
+
+class Container(Node):
+    """A state that holds userdata for the states it contains."""
+
+    def __init__(
+        self,
+        name: str,
+        outcomes: Sequence[str],
+        rt: Runtime,
+        io: Io | None = None,
+        userdata: Mapping[str, Any] | None = None,
+    ):
+        super().__init__(name, outcomes, rt, io)
+        self.initial_userdata = dict(userdata or {})
+        self.data: dict[str, Any] = {}
+
+    @property
+    def shares_userdata(self) -> bool:
+        """Without declared keys a nested container works on its parent's userdata."""
+        return not self.io.input_keys and not self.io.output_keys and not self.io.remapping
+
+    def initialise(self, now: datetime) -> None:
+        if self.shares_userdata:
+            target = self.ud
+            for key, value in self.initial_userdata.items():
+                if key not in target:
+                    target[key] = _copy(value)
+            self.data = target  # type: ignore[assignment]
+        else:
+            self.data = {key: _copy(value) for key, value in self.initial_userdata.items()}
+            for key in self.io.input_keys:
+                try:
+                    self.data[key] = self.ud[key]
+                except KeyError:
+                    pass
+        self.enter_children(now)
+
+    def enter_children(self, now: datetime) -> None:
+        """Bind and reset the states to run first."""
+
+    def terminate(self, now: datetime, new_status: Status) -> None:
+        if new_status is Status.DONE and not self.shares_userdata:
+            for key in self.io.output_keys:
+                if key in self.data:
+                    self.ud[key] = self.data[key]
+
+
+def _copy(value: Any) -> Any:
+    if isinstance(value, list):
+        return [_copy(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _copy(v) for k, v in value.items()}
+    return value
+
+
+class StateMachine(Container):
+    """States joined by transitions; ends when a transition names one of its outcomes."""
+
+    kind = "state_machine"
+
+    def __init__(
+        self,
+        name: str,
+        outcomes: Sequence[str],
+        rt: Runtime,
+        states: Mapping[str, Node],
+        transitions: Mapping[str, Mapping[str, str]],
+        initial: str,
+        io: Io | None = None,
+        userdata: Mapping[str, Any] | None = None,
+    ):
+        super().__init__(name, outcomes, rt, io, userdata)
+        self.states = dict(states)
+        self.transitions = {name: dict(t) for name, t in transitions.items()}
+        self.initial = initial
+        self.current: Node | None = None
+        self.transitions_taken = 0
+
+    def children(self) -> Sequence[Node]:
+        return list(self.states.values())
+
+    def active_children(self) -> Sequence[Node]:
+        return [self.current] if self.current is not None else []
+
+    def enter_children(self, now: datetime) -> None:
+        self._enter(self.states[self.initial])
+
+    def _enter(self, state: Node) -> None:
+        state.reset()
+        state.bind(self.data)
+        self.current = state
+
+    def update(self, now: datetime) -> Status:
+        for _ in range(MAX_STEPS_PER_TICK):
+            state = self.current
+            if state is None:
+                return self.fail("no active state")
+            status = state.tick(now)
+            if status is Status.RUNNING:
+                return Status.RUNNING
+            if status is Status.FAILED:
+                return self.fail(f"{state.name}: {state.error}")
+            outcome = state.outcome or ""
+            target = self.transitions.get(state.name, {}).get(outcome)
+            if target is None:
+                target = outcome  # an outcome of the container passes through
+            self.transitions_taken += 1
+            if target in self.states:
+                self._enter(self.states[target])
+                continue
+            self.current = None
+            return self.finish(target)
+        return Status.RUNNING
+
+    def terminate(self, now: datetime, new_status: Status) -> None:
+        super().terminate(now, new_status)
+        if new_status is not Status.INVALID:
+            self.current = None
+
+    def describe(self) -> dict[str, Any]:
+        out = super().describe()
+        out["initial"] = self.initial
+        out["transitions"] = {k: dict(v) for k, v in self.transitions.items() if v}
+        return out
+
+
+class Concurrence(Container):
+    """States ticked together; the ``outcome_map`` decides when and how it ends."""
+
+    kind = "concurrence"
+
+    def __init__(
+        self,
+        name: str,
+        outcomes: Sequence[str],
+        rt: Runtime,
+        states: Mapping[str, Node],
+        outcome_map: Mapping[str, Mapping[str, str]],
+        default_outcome: str,
+        io: Io | None = None,
+        userdata: Mapping[str, Any] | None = None,
+    ):
+        super().__init__(name, outcomes, rt, io, userdata)
+        self.states = dict(states)
+        self.outcome_map = {k: dict(v) for k, v in outcome_map.items()}
+        self.default_outcome = default_outcome
+
+    def children(self) -> Sequence[Node]:
+        return list(self.states.values())
+
+    def active_children(self) -> Sequence[Node]:
+        return [s for s in self.states.values() if s.status is Status.RUNNING]
+
+    def enter_children(self, now: datetime) -> None:
+        for state in self.states.values():
+            state.reset()
+            state.bind(self.data)
+
+    def update(self, now: datetime) -> Status:
+        for state in self.states.values():
+            if state.status in (Status.INVALID, Status.RUNNING):
+                if state.tick(now) is Status.FAILED:
+                    self._stop_all(now)
+                    return self.fail(f"{state.name}: {state.error}")
+        for outcome, wanted in self.outcome_map.items():
+            if all(
+                self.states[child].status is Status.DONE and self.states[child].outcome == out
+                for child, out in wanted.items()
+            ):
+                self._stop_all(now)
+                return self.finish(outcome)
+        if all(state.status is Status.DONE for state in self.states.values()):
+            return self.finish(self.default_outcome)
+        return Status.RUNNING
+
+    def _stop_all(self, now: datetime) -> None:
+        for state in self.states.values():
+            state.stop(now) if state.status is Status.RUNNING else None
+
+    def describe(self) -> dict[str, Any]:
+        out = super().describe()
+        out["outcome_map"] = {k: dict(v) for k, v in self.outcome_map.items()}
+        out["default_outcome"] = self.default_outcome
+        return out
+
+
+class Iterator(Container):
+    """Runs its state once per item, the item in userdata under ``item_key``."""
+
+    kind = "iterator"
+
+    def __init__(
+        self,
+        name: str,
+        outcomes: Sequence[str],
+        rt: Runtime,
+        state: Node,
+        items: Any,
+        item_key: str,
+        index_key: str | None,
+        continue_on: Sequence[str],
+        break_on: Mapping[str, str],
+        exhausted: str,
+        io: Io | None = None,
+        userdata: Mapping[str, Any] | None = None,
+    ):
+        super().__init__(name, outcomes, rt, io, userdata)
+        self.state = state
+        self.items_spec = items
+        self.item_key = item_key
+        self.index_key = index_key
+        self.continue_on = frozenset(continue_on)
+        self.break_on = dict(break_on)
+        self.exhausted = exhausted
+        self.items: list[Any] = []
+        self.index = 0
+
+    def children(self) -> Sequence[Node]:
+        return [self.state]
+
+    def active_children(self) -> Sequence[Node]:
+        return [self.state] if self.state.status is Status.RUNNING else []
+
+    def enter_children(self, now: datetime) -> None:
+        items = self.rt.render(self.items_spec, self.data)
+        if isinstance(items, int) and not isinstance(items, bool):
+            items = list(range(1, items + 1))
+        self.items = list(items) if isinstance(items, list | tuple) else []
+        self.index = 0
+        self._next()
+
+    def _next(self) -> None:
+        if self.index < len(self.items):
+            self.data[self.item_key] = self.items[self.index]
+            if self.index_key:
+                self.data[self.index_key] = self.index + 1
+            self.state.reset()
+            self.state.bind(self.data)
+
+    def update(self, now: datetime) -> Status:
+        for _ in range(MAX_STEPS_PER_TICK):
+            if self.index >= len(self.items):
+                return self.finish(self.exhausted)
+            status = self.state.tick(now)
+            if status is Status.RUNNING:
+                return Status.RUNNING
+            if status is Status.FAILED:
+                return self.fail(f"{self.state.name}: {self.state.error}")
+            outcome = self.state.outcome or ""
+            if outcome in self.break_on:
+                return self.finish(self.break_on[outcome])
+            if outcome not in self.continue_on:
+                return self.finish(outcome)
+            self.index += 1
+            self._next()
+        return Status.RUNNING
+
+    def active_path(self) -> str:
+        below = super().active_path()
+        return below
+
+    def describe(self) -> dict[str, Any]:
+        out = super().describe()
+        out["index"] = self.index
+        out["items"] = len(self.items)
+        return out
+
+
+@dataclass(frozen=True)
+class Trigger:
+    """What fires a guard: touched parts, spoken keywords, screen choices, a timer."""
+
+    touch: frozenset[str] = frozenset()
+    keywords: tuple[str, ...] = ()
+    screen: frozenset[str] = frozenset()
+    timer_s: float | None = None
+
+    def matches(self, event: Event) -> bool:
+        if isinstance(event, Touch):
+            return event.part in self.touch
+        if isinstance(event, ScreenChoice):
+            return event.choice.strip().lower() in self.screen
+        spoken = f" {' '.join(event.text.lower().split())} "
+        return any(f" {keyword} " in spoken for keyword in self.keywords)
+
+
+class Guard(Container):
+    """Stops what it contains when its trigger fires (ROS Commander's tactile guard)."""
+
+    kind = "guard"
+
+    def __init__(
+        self,
+        name: str,
+        outcomes: Sequence[str],
+        rt: Runtime,
+        state: Node,
+        trigger: Trigger,
+        trigger_outcome: str,
+        io: Io | None = None,
+    ):
+        super().__init__(name, outcomes, rt, io)
+        self.state = state
+        self.trigger = trigger
+        self.trigger_outcome = trigger_outcome
+        self.fired: str | None = None
+        self._deadline: datetime | None = None
+        self._remaining: float | None = None
+
+    def children(self) -> Sequence[Node]:
+        return [self.state]
+
+    def active_children(self) -> Sequence[Node]:
+        return [self.state] if self.state.status is Status.RUNNING else []
+
+    def enter_children(self, now: datetime) -> None:
+        self.fired = None
+        timer = self.trigger.timer_s
+        self._deadline = now + timedelta(seconds=timer) if timer is not None else None
+        self.state.reset()
+        self.state.bind(self.data)
+
+    def on_event(self, event: Event) -> bool:
+        if self.fired is None and self.trigger.matches(event):
+            self.fired = type(event).__name__.lower()
+            return True
+        return False
+
+    def update(self, now: datetime) -> Status:
+        if self.fired is None and self._deadline is not None and now >= self._deadline:
+            self.fired = "timer"
+        if self.fired is not None:
+            self.state.stop(now)
+            return self.finish(self.trigger_outcome)
+        status = self.state.tick(now)
+        if status is Status.FAILED:
+            return self.fail(f"{self.state.name}: {self.state.error}")
+        if status is Status.DONE:
+            return self.finish(self.state.outcome or "")
+        return Status.RUNNING
+
+    def on_pause(self, now: datetime) -> None:
+        if self._deadline is not None:
+            self._remaining = max(0.0, (self._deadline - now).total_seconds())
+
+    def on_resume(self, now: datetime) -> None:
+        if self._remaining is not None:
+            self._deadline = now + timedelta(seconds=self._remaining)
+            self._remaining = None
+
+    def describe(self) -> dict[str, Any]:
+        out = super().describe()
+        out["trigger_outcome"] = self.trigger_outcome
+        return out

@@ -1,0 +1,199 @@
+"""The behavior library: loads a directory of behavior files and builds activities.
+
+``BehaviorLibrary.load()`` reads the sixteen shipped behaviors (``activities/behaviors``);
+every file is checked (blocks, parameters, transitions, reachability, references and
+their cycles) and a bad file is refused with ``file:line: state PATH: message``.
+``reload()`` swaps in a new version only when every file is good, so a running
+daemon keeps the previous behaviors otherwise.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from activities.activity import Activity
+from activities.blocks import BLOCKS
+from activities.context import ActivityContext
+from activities.engine import (
+    Concurrence,
+    Guard,
+    Io,
+    Iterator,
+    Node,
+    Runtime,
+    StateMachine,
+    Trigger,
+)
+from activities.errors import BehaviorError, UnknownBehavior
+from activities.spec import BehaviorSpec, StateSpec, check_references, parse_file
+
+PACKAGE_DIR = Path(__file__).parent
+BEHAVIORS_DIR = PACKAGE_DIR / "behaviors"
+CONTENT_DIR = PACKAGE_DIR / "content"
+
+
+def load_specs(directory: Path) -> tuple[dict[str, BehaviorSpec], list[str]]:
+    """Every ``*.yaml`` in ``directory`` parsed and checked: (specs, problems)."""
+    specs: dict[str, BehaviorSpec] = {}
+    problems: list[str] = []
+    if not directory.is_dir():
+        return specs, [f"{directory}: not a directory"]
+    for path in sorted(directory.glob("*.yaml")):
+        try:
+            spec = parse_file(path)
+        except BehaviorError as error:
+            problems.extend(error.problems)
+            continue
+        if spec.name != path.stem:
+            problems.append(f"{path}:1: name {spec.name!r} differs from the file name")
+        if spec.name in specs:
+            problems.append(f"{path}:1: behavior {spec.name!r} defined twice")
+        specs[spec.name] = spec
+    problems.extend(check_references(specs))
+    return specs, problems
+
+
+class BehaviorLibrary:
+    """The behaviors of one directory, ready to be created as activities."""
+
+    def __init__(self, specs: Mapping[str, BehaviorSpec], directory: Path | None = None):
+        self.directory = directory
+        self._specs = dict(specs)
+
+    @classmethod
+    def load(cls, directory: Path | None = None) -> BehaviorLibrary:
+        """Load and check ``directory`` (default: the shipped behaviors)."""
+        directory = directory or BEHAVIORS_DIR
+        specs, problems = load_specs(directory)
+        if problems:
+            more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+            raise BehaviorError(problems[0] + more, problems)
+        return cls(specs, directory)
+
+    @classmethod
+    def for_file(cls, path: Path) -> tuple[BehaviorLibrary, BehaviorSpec]:
+        """One file with the behaviors it may reference (its folder's, then the shipped)."""
+        spec = parse_file(path)
+        specs: dict[str, BehaviorSpec] = {}
+        for directory in (BEHAVIORS_DIR, path.parent):
+            for other in sorted(directory.glob("*.yaml")):
+                if other.resolve() == path.resolve():
+                    continue
+                try:
+                    found = parse_file(other)
+                except BehaviorError:
+                    continue
+                specs[found.name] = found
+        specs[spec.name] = spec
+        problems = [p for p in check_references(specs) if p.startswith(str(path))]
+        if problems:
+            raise BehaviorError(problems[0], problems)
+        return cls(specs, path.parent), spec
+
+    @property
+    def names(self) -> frozenset[str]:
+        return frozenset(self._specs)
+
+    def spec(self, name: str) -> BehaviorSpec:
+        try:
+            return self._specs[name]
+        except KeyError:
+            raise UnknownBehavior(f"no behavior named {name!r}") from None
+
+    def reload(self) -> list[str]:
+        """Re-read the directory; swap in only when every file is good. Problems, or []."""
+        specs, problems = load_specs(self.directory or BEHAVIORS_DIR)
+        if problems:
+            return problems
+        self._specs = specs
+        return []
+
+    def content_dirs(self) -> tuple[Path, ...]:
+        dirs = []
+        if self.directory is not None:
+            dirs.append(self.directory / "content")
+            dirs.append(self.directory.parent / "content")
+        dirs.append(CONTENT_DIR)
+        return tuple(dict.fromkeys(dirs))
+
+    def create(
+        self, name: str, ctx: ActivityContext, args: Mapping[str, Any] | None = None
+    ) -> Activity:
+        """A new, not yet started activity of behavior ``name``."""
+        spec = self.spec(name)
+        runtime = Runtime(ctx, args or {}, self.content_dirs())
+        root = self.build_root(spec, runtime)
+        return Activity(name, root, runtime)
+
+    def build_root(self, spec: BehaviorSpec, runtime: Runtime) -> Node:
+        return self._build(spec.root, spec.name, runtime)
+
+    def _build(self, state: StateSpec, name: str, rt: Runtime) -> Node:
+        io = Io(tuple(state.input_keys), tuple(state.output_keys), dict(state.remapping))
+        params = state.params
+        if state.block in BLOCKS:
+            return BLOCKS[state.block](name, rt, params, io)
+        children = {n: self._build(s, n, rt) for n, s in state.states.items()}
+        if state.block == "state_machine":
+            return StateMachine(
+                name,
+                params.get("outcomes") or [],
+                rt,
+                children,
+                {n: s.transitions for n, s in state.states.items()},
+                params.get("initial") or next(iter(children)),
+                io,
+                params.get("userdata"),
+            )
+        if state.block == "concurrence":
+            return Concurrence(
+                name,
+                params.get("outcomes") or [],
+                rt,
+                children,
+                params.get("outcome_map") or {},
+                params["default_outcome"],
+                io,
+                params.get("userdata"),
+            )
+        if state.block == "iterator":
+            (child,) = children.values()
+            return Iterator(
+                name,
+                state.outcomes(),
+                rt,
+                child,
+                params["items"],
+                params.get("item_key", "item"),
+                params.get("index_key"),
+                params.get("continue_on") or [],
+                params.get("break_on") or {},
+                params.get("exhausted", "done"),
+                io,
+            )
+        if state.block == "guard":
+            (child,) = children.values()
+            trigger = Trigger(
+                touch=frozenset(params.get("touch") or []),
+                keywords=tuple(k.lower() for k in params.get("keywords") or []),
+                screen=frozenset(s.lower() for s in params.get("screen") or []),
+                timer_s=params.get("timer_s"),
+            )
+            return Guard(
+                name,
+                state.outcomes(),
+                rt,
+                child,
+                trigger,
+                params.get("outcome", "triggered"),
+                io,
+            )
+        if state.block == "behavior":
+            target = self.spec(str(params["name"]))
+            node = self._build(target.root, name, rt)
+            node.io = io
+            node.kind = "behavior"
+            return node
+        raise BehaviorError(f"unknown block {state.block!r}")

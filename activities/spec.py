@@ -1,0 +1,591 @@
+"""The open format: behavior files in YAML, checked on load, saved without loss.
+
+A behavior file is a state machine::
+
+    name: quiz
+    description: ...
+    outcomes: [done]
+    initial: INTRO            # optional: the first state listed
+    userdata: {score: 0}      # optional
+    states:
+      INTRO:
+        speak: {text: "Hello {user.name|there}!"}
+        transitions: {done: GAME}
+      GAME:
+        guard: {touch: [left_shoulder], outcome: touched, state: {...}}
+        transitions: {done: END, touched: END}
+
+Each state has exactly one block key (a building block of :mod:`activities.blocks`,
+or a container: ``state_machine``, ``concurrence``, ``iterator``, ``guard``,
+``behavior``) plus optional ``transitions``, ``input_keys``, ``output_keys`` and
+``remapping``. Problems are reported as ``file:line: state PATH: message``.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from activities.blocks import BLOCKS, Param, type_ok
+from activities.engine import PREEMPTED
+from activities.errors import BehaviorError
+from activities.template import is_single_placeholder
+
+CONTAINERS = ("state_machine", "concurrence", "iterator", "guard", "behavior")
+STATE_KEYS = ("transitions", "input_keys", "output_keys", "remapping")
+TOP_KEYS = ("name", "description", "outcomes", "initial", "userdata", "states")
+
+CONTAINER_PARAMS: dict[str, dict[str, Param]] = {
+    "state_machine": {
+        "outcomes": Param("string_list", required=True),
+        "initial": Param("string"),
+        "userdata": Param("mapping"),
+        "states": Param("mapping", required=True),
+    },
+    "concurrence": {
+        "outcomes": Param("string_list", required=True),
+        "default_outcome": Param("string", required=True),
+        "outcome_map": Param("mapping", default={}),
+        "userdata": Param("mapping"),
+        "states": Param("mapping", required=True),
+    },
+    "iterator": {
+        "items": Param("any", required=True, doc="A list, a count, or a placeholder."),
+        "item_key": Param("string", default="item"),
+        "index_key": Param("string"),
+        "continue_on": Param("string_list", required=True),
+        "break_on": Param("mapping", default={}),
+        "exhausted": Param("string", default="done"),
+        "state": Param("mapping", required=True),
+    },
+    "guard": {
+        "touch": Param("string_list", default=[]),
+        "keywords": Param("string_list", default=[]),
+        "screen": Param("string_list", default=[]),
+        "timer_s": Param("number"),
+        "outcome": Param("string", default="triggered"),
+        "state": Param("mapping", required=True),
+    },
+    "behavior": {"name": Param("string", required=True)},
+}
+
+
+# ---------------------------------------------------------------- YAML with lines
+
+
+class _Located(dict[str, Any]):
+    """A mapping read from YAML that remembers the line of itself and of each key."""
+
+    line: int = 0
+    key_lines: dict[str, int]
+
+
+class _Loader(yaml.SafeLoader):
+    pass
+
+
+def _construct_mapping(loader: _Loader, node: yaml.MappingNode) -> _Located:
+    loader.flatten_mapping(node)
+    out = _Located()
+    out.line = node.start_mark.line + 1
+    out.key_lines = {}
+    for key_node, value_node in node.value:
+        key = loader.construct_object(key_node, deep=True)
+        if not isinstance(key, str):
+            key = str(key).lower() if isinstance(key, bool) else str(key)
+        if key in out:
+            raise yaml.constructor.ConstructorError(
+                None, None, f"duplicate key {key!r}", key_node.start_mark
+            )
+        out[key] = loader.construct_object(value_node, deep=True)
+        out.key_lines[key] = key_node.start_mark.line + 1
+    return out
+
+
+_Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
+
+
+def plain(value: Any) -> Any:
+    """Located mappings as plain dicts, recursively (for saving and comparing)."""
+    if isinstance(value, dict):
+        return {str(k): plain(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [plain(v) for v in value]
+    return value
+
+
+def _line(mapping: Any, key: str | None = None) -> int:
+    if isinstance(mapping, _Located):
+        if key is not None and key in mapping.key_lines:
+            return mapping.key_lines[key]
+        return mapping.line
+    return 0
+
+
+# ---------------------------------------------------------------- the model
+
+
+@dataclass
+class StateSpec:
+    """One state as written: its block (or container) and how it connects."""
+
+    name: str
+    block: str
+    params: dict[str, Any]
+    """The block's parameters as written (containers: without their child states)."""
+    transitions: dict[str, str] = field(default_factory=dict)
+    input_keys: list[str] = field(default_factory=list)
+    output_keys: list[str] = field(default_factory=list)
+    remapping: dict[str, str] = field(default_factory=dict)
+    states: dict[str, StateSpec] = field(default_factory=dict)
+    """Child states of a state_machine/concurrence, or the one of an iterator/guard."""
+    line: int = 0
+    present: tuple[str, ...] = ()
+    """Which optional keys the file had, so saving writes back exactly them."""
+    transition_lines: dict[str, int] = field(default_factory=dict, compare=False, repr=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        body = dict(self.params)
+        if self.block in ("state_machine", "concurrence"):
+            body["states"] = {name: s.to_dict() for name, s in self.states.items()}
+        elif self.block in ("iterator", "guard"):
+            body["state"] = {name: s.to_dict() for name, s in self.states.items()}
+        out: dict[str, Any] = {self.block: body}
+        for key in STATE_KEYS:
+            if key in self.present:
+                out[key] = getattr(self, key)
+        return out
+
+    def outcomes(self, library: Mapping[str, BehaviorSpec] | None = None) -> tuple[str, ...]:
+        """The outcomes this state may end with (``preempted`` aside)."""
+        if self.block in BLOCKS:
+            return BLOCKS[self.block].outcomes_for(self.params)
+        if self.block in ("state_machine", "concurrence"):
+            return tuple(self.params.get("outcomes") or ())
+        if self.block == "iterator":
+            breaks = [str(v) for v in (self.params.get("break_on") or {}).values()]
+            return tuple(dict.fromkeys([str(self.params.get("exhausted", "done")), *breaks]))
+        if self.block == "guard":
+            inner = [o for s in self.states.values() for o in s.outcomes(library)]
+            return tuple(dict.fromkeys([*inner, str(self.params.get("outcome", "triggered"))]))
+        if self.block == "behavior" and library is not None:
+            target = library.get(str(self.params.get("name")))
+            return tuple(target.outcomes) if target is not None else ()
+        return ()
+
+
+@dataclass
+class BehaviorSpec:
+    """A whole behavior file."""
+
+    name: str
+    root: StateSpec
+    description: str | None = None
+    path: Path | None = None
+    present: tuple[str, ...] = ()
+
+    @property
+    def outcomes(self) -> list[str]:
+        return list(self.root.params.get("outcomes") or [])
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"name": self.name}
+        if "description" in self.present:
+            out["description"] = self.description
+        out["outcomes"] = self.root.params.get("outcomes")
+        for key in ("initial", "userdata"):
+            if key in self.root.params:
+                out[key] = self.root.params[key]
+        out["states"] = {name: s.to_dict() for name, s in self.root.states.items()}
+        return out
+
+    def dump(self) -> str:
+        """The behavior as YAML text."""
+        return yaml.safe_dump(self.to_dict(), sort_keys=False, allow_unicode=True, width=100)
+
+    def save(self, path: Path) -> None:
+        path.write_text(self.dump(), encoding="utf-8")
+
+    def references(self) -> set[str]:
+        """The behaviors this one uses as states."""
+        found: set[str] = set()
+
+        def walk(state: StateSpec) -> None:
+            if state.block == "behavior":
+                found.add(str(state.params.get("name")))
+            for child in state.states.values():
+                walk(child)
+
+        walk(self.root)
+        return found
+
+
+# ---------------------------------------------------------------- parsing and checking
+
+
+class _Checker:
+    def __init__(self, where: str) -> None:
+        self.where = where
+        self.problems: list[str] = []
+
+    def problem(self, line: int, path: str, message: str) -> None:
+        at = f"{self.where}:{line}" if line else self.where
+        state = f" state {path}:" if path else ""
+        self.problems.append(f"{at}:{state} {message}")
+
+
+def parse_text(text: str, where: str, path: Path | None = None) -> BehaviorSpec:
+    """Parse and check one behavior; raise BehaviorError naming file, line and state."""
+    try:
+        data = yaml.load(text, Loader=_Loader)  # noqa: S506 - a SafeLoader subclass
+    except yaml.YAMLError as error:
+        mark = getattr(error, "problem_mark", None)
+        line = f":{mark.line + 1}" if mark is not None else ""
+        problem = getattr(error, "problem", None) or str(error).splitlines()[0]
+        raise BehaviorError(f"{where}{line}: not valid YAML: {problem}") from None
+    checker = _Checker(where)
+    if not isinstance(data, _Located):
+        raise BehaviorError(f"{where}:1: a behavior file is a mapping with name and states")
+    for key in data:
+        if key not in TOP_KEYS:
+            checker.problem(_line(data, key), "", f"unknown key {key!r}")
+    name = data.get("name")
+    if not isinstance(name, str) or not name:
+        checker.problem(_line(data, "name"), "", "name must be a non-empty string")
+        name = path.stem if path is not None else "behavior"
+    description = data.get("description")
+    if description is not None and not isinstance(description, str):
+        checker.problem(_line(data, "description"), "", "description must be a string")
+    body = {key: data[key] for key in ("outcomes", "initial", "userdata", "states") if key in data}
+    located = _Located(body)
+    located.line, located.key_lines = data.line, data.key_lines
+    root = _parse_state(checker, "", "state_machine", located, data.line)
+    if root is not None:
+        _check_machine(checker, root, "")
+    if checker.problems:
+        first = checker.problems[0]
+        more = f" (and {len(checker.problems) - 1} more)" if len(checker.problems) > 1 else ""
+        raise BehaviorError(first + more, checker.problems)
+    assert root is not None
+    present = tuple(k for k in ("description",) if k in data)
+    return BehaviorSpec(name, root, description, path, present)
+
+
+def parse_file(path: Path) -> BehaviorSpec:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as error:
+        raise BehaviorError(f"{path}: cannot read: {error}") from None
+    return parse_text(text, str(path), path)
+
+
+def _check_params(
+    checker: _Checker, path: str, block: str, params: Any, specs: dict[str, Param], line: int
+) -> dict[str, Any]:
+    if params is None:
+        params = {}
+    if not isinstance(params, dict):
+        checker.problem(line, path, f"{block}: parameters must be a mapping")
+        return {}
+    for key, value in params.items():
+        spec = specs.get(key)
+        if spec is None:
+            known = ", ".join(specs)
+            checker.problem(_line(params, key), path, f"{block}: unknown parameter {key!r} ({known})")
+        elif not type_ok(value, spec):
+            expected = spec.type + (f" one of {list(spec.enum)}" if spec.enum else "")
+            checker.problem(
+                _line(params, key),
+                path,
+                f"{block}: parameter {key!r} must be {expected}, not {type(value).__name__}"
+                f" {value!r}"[:200],
+            )
+    for key, spec in specs.items():
+        if spec.required and key not in params:
+            checker.problem(line, path, f"{block}: missing parameter {key!r}")
+    return params
+
+
+def _parse_state(
+    checker: _Checker, path: str, block: str, params: Any, line: int
+) -> StateSpec | None:
+    """The block part of a state (params of a leaf, or a container with children)."""
+    name = path.rsplit("/", 1)[-1]
+    if block in BLOCKS:
+        checked = _check_params(checker, path, block, params, BLOCKS[block].PARAMS, line)
+        return StateSpec(name, block, plain(checked), line=line)
+    specs = CONTAINER_PARAMS[block]
+    checked = _check_params(checker, path, block, params, specs, line)
+    children: dict[str, StateSpec] = {}
+    child_key = "states" if block in ("state_machine", "concurrence") else "state"
+    raw_children = checked.get(child_key)
+    if block != "behavior":
+        if not isinstance(raw_children, dict) or not raw_children:
+            checker.problem(line, path, f"{block}: {child_key} must name at least one state")
+        elif child_key == "state" and len(raw_children) != 1:
+            checker.problem(line, path, f"{block}: state must hold exactly one state")
+        else:
+            for child_name, child in raw_children.items():
+                child_path = f"{path}/{child_name}" if path else str(child_name)
+                spec = parse_state_entry(checker, child_path, child, _line(raw_children, child_name))
+                if spec is not None:
+                    children[str(child_name)] = spec
+    own = {k: plain(v) for k, v in checked.items() if k != child_key}
+    return StateSpec(name, block, own, states=children, line=line)
+
+
+def parse_state_entry(checker: _Checker, path: str, raw: Any, line: int) -> StateSpec | None:
+    """One entry of ``states``: exactly one block key plus the connection keys."""
+    if not isinstance(raw, dict):
+        checker.problem(line, path, "a state is a mapping with one block")
+        return None
+    kinds = [key for key in raw if key not in STATE_KEYS]
+    unknown = [key for key in kinds if key not in BLOCKS and key not in CONTAINERS]
+    for key in unknown:
+        checker.problem(_line(raw, key), path, f"unknown block {key!r}")
+    if unknown:
+        return None
+    if len(kinds) != 1:
+        found = ", ".join(kinds) or "none"
+        checker.problem(line, path, f"a state has exactly one block (found: {found})")
+        return None
+    block = kinds[0]
+    spec = _parse_state(checker, path, block, raw[block], _line(raw, block))
+    if spec is None:
+        return None
+    spec.line = _line(raw, block) or line
+    present = []
+    for key in STATE_KEYS:
+        if key not in raw:
+            continue
+        present.append(key)
+        value = raw[key]
+        if key in ("transitions", "remapping"):
+            if not isinstance(value, dict) or not all(isinstance(v, str) for v in value.values()):
+                checker.problem(_line(raw, key), path, f"{key} must map names to names")
+                continue
+            setattr(spec, key, {str(k): v for k, v in value.items()})
+        else:
+            if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+                checker.problem(_line(raw, key), path, f"{key} must be a list of names")
+                continue
+            setattr(spec, key, list(value))
+    spec.present = tuple(present)
+    spec.name = path.rsplit("/", 1)[-1]
+    raw_transitions = raw.get("transitions")
+    if isinstance(raw_transitions, _Located):
+        spec.transition_lines = dict(raw_transitions.key_lines)
+    return spec
+
+
+def _check_machine(checker: _Checker, state: StateSpec, path: str) -> None:
+    """Container rules: transitions, reachability, outcome maps; recursively."""
+    prefix = f"{path}/" if path else ""
+    if state.block == "state_machine":
+        outcomes = set(state.params.get("outcomes") or [])
+        names = list(state.states)
+        initial = state.params.get("initial", names[0] if names else None)
+        if initial is not None and initial not in state.states:
+            checker.problem(state.line, path, f"initial state {initial!r} does not exist")
+        for name, child in state.states.items():
+            lines = child.transition_lines
+            for outcome, target in child.transitions.items():
+                line = lines.get(outcome, child.line)
+                if target not in state.states and target not in outcomes:
+                    checker.problem(line, prefix + name, f"transition {outcome!r} goes to missing state {target!r}")
+                declared = child.outcomes()
+                if child.block != "behavior" and outcome not in declared and outcome != PREEMPTED:
+                    checker.problem(line, prefix + name, f"{child.block} has no outcome {outcome!r} (it has {list(declared)})")
+            if child.block != "behavior":
+                for outcome in child.outcomes():
+                    if outcome not in child.transitions and outcome not in outcomes:
+                        checker.problem(child.line, prefix + name, f"outcome {outcome!r} leads nowhere (add a transition)")
+        if initial in state.states:
+            seen = {initial}
+            todo = [initial]
+            while todo:
+                current = state.states[todo.pop()]
+                for target in current.transitions.values():
+                    if target in state.states and target not in seen:
+                        seen.add(target)
+                        todo.append(target)
+            for name, child in state.states.items():
+                if name not in seen:
+                    checker.problem(child.line, prefix + name, "unreachable state")
+    elif state.block == "concurrence":
+        outcomes = set(state.params.get("outcomes") or [])
+        default = state.params.get("default_outcome")
+        if default not in outcomes:
+            checker.problem(state.line, path, f"default_outcome {default!r} is not an outcome")
+        omap = state.params.get("outcome_map") or {}
+        for outcome, wanted in omap.items():
+            if outcome not in outcomes:
+                checker.problem(state.line, path, f"outcome_map: {outcome!r} is not an outcome")
+            if not isinstance(wanted, dict):
+                checker.problem(state.line, path, f"outcome_map: {outcome!r} must map states to outcomes")
+                continue
+            for child, child_outcome in wanted.items():
+                if child not in state.states:
+                    checker.problem(state.line, path, f"outcome_map: no state {child!r}")
+                elif child_outcome not in (*state.states[child].outcomes(), PREEMPTED) and state.states[child].block != "behavior":
+                    checker.problem(state.line, path, f"outcome_map: {child} has no outcome {child_outcome!r}")
+        for name, child in state.states.items():
+            if child.transitions:
+                checker.problem(child.line, prefix + name, "states of a concurrence have no transitions")
+    elif state.block == "iterator":
+        continue_on = set(state.params.get("continue_on") or [])
+        break_on = state.params.get("break_on") or {}
+        for name, child in state.states.items():
+            if child.block == "behavior":
+                continue
+            for outcome in child.outcomes():
+                if outcome not in continue_on and outcome not in break_on:
+                    checker.problem(child.line, prefix + name, f"outcome {outcome!r} is neither in continue_on nor in break_on")
+        items = state.params.get("items")
+        if not (isinstance(items, list | int) or is_single_placeholder(items)):
+            checker.problem(state.line, path, "iterator: items must be a list, a count or a placeholder")
+    for name, child in state.states.items():
+        _check_machine(checker, child, prefix + name)
+
+
+def check_references(specs: Mapping[str, BehaviorSpec]) -> list[str]:
+    """Missing behaviors and cycles of behavior references, one problem per finding."""
+    problems: list[str] = []
+
+    def where(spec: BehaviorSpec, target: str) -> str:
+        found: list[tuple[int, str]] = []
+
+        def walk(state: StateSpec, path: str) -> None:
+            for name, child in state.states.items():
+                child_path = f"{path}/{name}" if path else name
+                if child.block == "behavior" and child.params.get("name") == target:
+                    found.append((child.line, child_path))
+                walk(child, child_path)
+
+        walk(spec.root, "")
+        line, path = found[0] if found else (0, "")
+        return f"{spec.path or spec.name}:{line}: state {path}:"
+
+    for spec in specs.values():
+        for target in sorted(spec.references()):
+            if target not in specs:
+                problems.append(f"{where(spec, target)} behavior {target!r} does not exist")
+    state: dict[str, int] = {}
+
+    def visit(name: str, stack: list[str]) -> None:
+        state[name] = 1
+        spec = specs[name]
+        for target in sorted(spec.references()):
+            if target not in specs:
+                continue
+            if state.get(target) == 1:
+                cycle = " -> ".join([*stack[stack.index(target) :], target])
+                problems.append(f"{where(spec, target)} cycle of behavior references: {cycle}")
+            elif target not in state:
+                visit(target, [*stack, target])
+        state[name] = 2
+
+    for name in sorted(specs):
+        if name not in state:
+            visit(name, [name])
+    return problems
+
+
+# ---------------------------------------------------------------- JSON Schema
+
+
+def _param_schema(spec: Param) -> dict[str, Any]:
+    placeholder = {"type": "string", "pattern": r"^\s*\{[A-Za-z_][\w.]*(\|[^{}]*)?\}\s*$"}
+    base: dict[str, Any]
+    match spec.type:
+        case "string":
+            base = {"type": "string"}
+            if spec.enum:
+                base["enum"] = list(spec.enum)
+        case "integer" | "number" | "boolean":
+            base = {"anyOf": [{"type": spec.type}, placeholder]}
+        case "string_list":
+            base = {"anyOf": [{"type": "array", "items": {"type": "string"}}, placeholder]}
+        case "list":
+            base = {"anyOf": [{"type": "array"}, placeholder]}
+        case "mapping":
+            base = {"type": "object"}
+        case _:
+            base = {}
+    if spec.nullable and base:
+        base = {"anyOf": [base, {"type": "null"}]}
+    if spec.doc:
+        base["description"] = spec.doc
+    return base
+
+
+def json_schema() -> dict[str, Any]:
+    """The published JSON Schema of behavior files (``dms behavior schema``)."""
+    state_variants = []
+    names = {"type": "array", "items": {"type": "string"}}
+    for block, specs in [*((b, cls.PARAMS) for b, cls in BLOCKS.items()), *CONTAINER_PARAMS.items()]:
+        props: dict[str, Any] = {}
+        for key, spec in specs.items():
+            if key in ("states",):
+                props[key] = {"type": "object", "additionalProperties": {"$ref": "#/$defs/state"}}
+            elif key == "state":
+                props[key] = {
+                    "type": "object",
+                    "additionalProperties": {"$ref": "#/$defs/state"},
+                    "minProperties": 1,
+                    "maxProperties": 1,
+                }
+            else:
+                props[key] = _param_schema(spec)
+        body = {
+            "type": "object",
+            "properties": props,
+            "required": [k for k, s in specs.items() if s.required],
+            "additionalProperties": False,
+        }
+        doc = BLOCKS[block].DOC if block in BLOCKS else f"Container: {block}."
+        state_variants.append(
+            {
+                "type": "object",
+                "description": doc,
+                "properties": {
+                    block: body,
+                    "transitions": {"type": "object", "additionalProperties": {"type": "string"}},
+                    "input_keys": names,
+                    "output_keys": names,
+                    "remapping": {"type": "object", "additionalProperties": {"type": "string"}},
+                },
+                "required": [block],
+                "additionalProperties": False,
+            }
+        )
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "$id": "https://github.com/dms/activities/behavior.schema.json",
+        "title": "dms behavior",
+        "description": "A behavior of the Mini robot: a hierarchical state machine of blocks.",
+        "type": "object",
+        "properties": {
+            "name": {"type": "string", "minLength": 1},
+            "description": {"type": "string"},
+            "outcomes": names,
+            "initial": {"type": "string"},
+            "userdata": {"type": "object"},
+            "states": {"type": "object", "additionalProperties": {"$ref": "#/$defs/state"}},
+        },
+        "required": ["name", "outcomes", "states"],
+        "additionalProperties": False,
+        "$defs": {"state": {"oneOf": state_variants}},
+    }
+
+
+SCHEMA_PATH = Path(__file__).with_name("behavior.schema.json")
+
+
+def schema_text() -> str:
+    return json.dumps(json_schema(), indent=2) + "\n"

@@ -1,0 +1,63 @@
+"""What people call the activities: names and synonyms to recognise a spoken request.
+
+The menu block and the controller share :func:`match_activity`, so "let's play the
+quiz", "tell me a joke" or "cognitive stimulation" name the same activity everywhere.
+"""
+
+from __future__ import annotations
+
+import re
+
+from dms.activity_names import ACTIVITIES
+
+SYNONYMS: dict[str, tuple[str, ...]] = {
+    "multimedia": ("multimedia", "music", "song", "songs", "video", "videos", "photos", "film"),
+    "news": ("news", "newspaper", "headlines"),
+    "weather": ("weather", "forecast", "temperature"),
+    "quiz": ("quiz", "trivia", "questions game"),
+    "dance": ("dance", "dancing"),
+    "bingo": ("bingo", "lottery"),
+    "jokes": ("jokes", "joke", "something funny", "make me laugh"),
+    "sayings": ("sayings", "saying", "proverbs", "proverb"),
+    "talk": ("talk", "chat", "conversation"),
+    "presentation": ("presentation", "present yourself", "introduce yourself", "who are you"),
+    "sleep": ("sleep", "go to sleep", "nap"),
+    "wait": (),
+    "cognitive_stimulation": (
+        "cognitive stimulation",
+        "cognitive_stimulation",
+        "exercises",
+        "brain training",
+        "memory games",
+    ),
+    "notification": ("notification", "reminder"),
+    "instructions": ("instructions", "help", "how do you work", "how to use"),
+    "menu": ("menu", "options", "what can you do"),
+}
+"""Phrases that name each activity (lower case, whole words); ``wait`` only by its name."""
+
+_PATTERNS: list[tuple[re.Pattern[str], str]] = sorted(
+    (
+        (re.compile(rf"(?<![\w']){re.escape(phrase)}(?![\w'])"), name)
+        for name, phrases in SYNONYMS.items()
+        for phrase in phrases
+    ),
+    key=lambda item: -len(item[0].pattern),
+)
+
+
+def match_activity(text: str) -> str | None:
+    """The activity ``text`` names (its name or a synonym, as whole words), else None.
+
+    Longer phrases win, so "cognitive stimulation" is not read as anything shorter.
+    """
+    spoken = " ".join(text.lower().replace("_", " ").split())
+    if not spoken:
+        return None
+    exact = spoken.replace(" ", "_")
+    if exact in ACTIVITIES:
+        return exact
+    for pattern, name in _PATTERNS:
+        if pattern.search(spoken):
+            return name
+    return None
