@@ -140,8 +140,6 @@ class Activity:
 def _json_safe(data: Mapping[str, Any]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for key, value in data.items():
-        if isinstance(value, str | int | float | bool | type(None)):
-            out[key] = value
-        elif isinstance(value, list | dict):
+        if isinstance(value, str | int | float | bool | type(None) | list | dict):
             out[key] = value
     return out

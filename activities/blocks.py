@@ -126,7 +126,7 @@ class Block(Node):
 
 def coerce(value: Any, spec: Param) -> Any:
     """A bound value as the parameter's type (placeholders bind to text)."""
-    if value is None or value == "" and spec.type != "string":
+    if value is None or (value == "" and spec.type != "string"):
         return spec.default if value is None or spec.type != "string" else value
     try:
         if spec.type == "integer" and not isinstance(value, bool):

@@ -1,5 +1,152 @@
-"""Command line of the activities package, mounted by dms.cli."""
+"""``dms behavior``: check, draw, step through and run behavior files; print the schema."""
+
+from __future__ import annotations
+
+import json
+import sys
+from enum import StrEnum
+from pathlib import Path
+from typing import Annotated
 
 import typer
 
+from activities.diagram import to_dot, to_mermaid
+from activities.errors import BehaviorError
+from activities.library import BehaviorLibrary
+from activities.spec import schema_text
+from activities.stepper import BehaviorRun, Step, parse_input
+
 app = typer.Typer(no_args_is_help=True)
+
+
+class DiagramFormat(StrEnum):
+    DOT = "dot"
+    MERMAID = "mermaid"
+
+
+def _user(user_id: str | None) -> dict[str, object]:
+    if user_id is None:
+        return {}
+    return {"id": user_id, "name": user_id.replace("_", " ").title()}
+
+
+def _print(step: Step) -> None:
+    for line in step.lines():
+        typer.echo(line)
+
+
+@app.command()
+def check(
+    files: Annotated[list[Path], typer.Argument(help="Behavior files to check.")],
+) -> None:
+    """Check behavior files; one FILE:LINE: state PATH: message line per problem."""
+    failed = False
+    for path in files:
+        try:
+            BehaviorLibrary.for_file(path)
+        except BehaviorError as error:
+            failed = True
+            for problem in error.problems:
+                typer.echo(problem)
+            continue
+        typer.echo(f"{path}: ok")
+    if failed:
+        raise typer.Exit(1)
+
+
+@app.command()
+def show(
+    file: Annotated[Path, typer.Argument(help="A behavior file.")],
+    format: Annotated[DiagramFormat, typer.Option(help="dot or mermaid.")] = DiagramFormat.DOT,
+    active: Annotated[str, typer.Option(help="A state path to highlight.")] = "",
+) -> None:
+    """Print a diagram of the behavior's states and transitions (nested machines as clusters)."""
+    _library, spec = BehaviorLibrary.for_file(file)
+    draw = to_dot if format is DiagramFormat.DOT else to_mermaid
+    typer.echo(draw(spec, active), nl=False)
+
+
+@app.command()
+def step(
+    file: Annotated[Path, typer.Argument(help="A behavior file.")],
+    user: Annotated[str | None, typer.Option(help="Run as this user (params.user).")] = None,
+    seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+    text: Annotated[str | None, typer.Option(help="args.text (for notification).")] = None,
+) -> None:
+    """Run on the simulated robot one state at a time: Enter goes on.
+
+    Type an answer instead (said by the user), ``screen:CHOICE`` to tap the screen or
+    ``touch:PART`` to touch the robot; ``q`` stops. At the end of input it runs on.
+    """
+    library, spec = BehaviorLibrary.for_file(file)
+    run = BehaviorRun(library, spec, _user(user), {"text": text} if text else {}, seed)
+    _print(run.begin())
+    interactive = True
+    while not run.activity.finished:
+        if interactive:
+            typer.echo("> ", nl=False)
+            line = sys.stdin.readline()
+            if not line:
+                interactive = False
+            elif line.strip() == "q":
+                run.activity.cancel(run.clock.now())
+                break
+            else:
+                try:
+                    event = parse_input(line)
+                except ValueError as error:
+                    typer.echo(f"  not understood: {error}".splitlines()[0])
+                    continue
+                if event is not None:
+                    taken = run.deliver(event)
+                    typer.echo(f"  event {'taken' if taken else 'not taken'}")
+        _print(run.next_state(max_s=600.0 if interactive else 3600.0))
+    result = run.activity.result
+    typer.echo(
+        f"{run.activity.status.value if run.activity.status else '-'}: {result.outcome}"
+        + (f" -> {result.redirect}" if result.redirect else "")
+        + (f" ({result.error})" if result.error else "")
+    )
+
+
+@app.command("run")
+def run_command(
+    file: Annotated[Path, typer.Argument(help="A behavior file.")],
+    user: Annotated[str | None, typer.Option(help="Run as this user (params.user).")] = None,
+    answer: Annotated[
+        list[str] | None, typer.Option(help="Answers to the questions, in order.")
+    ] = None,
+    seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+    max_s: Annotated[float, typer.Option(help="Cancel after this many virtual seconds.")] = 3600,
+    text: Annotated[str | None, typer.Option(help="args.text (for notification).")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print only a JSON summary.")] = False,
+) -> None:
+    """Run the behavior to its end on the simulated robot and a virtual clock."""
+    library, spec = BehaviorLibrary.for_file(file)
+    run = BehaviorRun(library, spec, _user(user), {"text": text} if text else {}, seed)
+    steps: list[Step] = []
+    activity = run.run(steps.append if as_json else _print, answer or [], max_s)
+    result = activity.result
+    summary = {
+        "behavior": spec.name,
+        "status": activity.status.value if activity.status else None,
+        "outcome": result.outcome,
+        "redirect": result.redirect,
+        "error": result.error,
+        "seconds": run.t,
+        "states": len(steps),
+        "commands": len(run.commands),
+        "data": result.data,
+    }
+    if as_json:
+        typer.echo(json.dumps(summary, default=str))
+    else:
+        typer.echo(f"{summary['status']}: {result.outcome} after {run.t:.1f} s")
+    if result.error:
+        raise typer.Exit(1)
+
+
+@app.command()
+def schema() -> None:
+    """Print the JSON Schema of behavior files."""
+    typer.echo(schema_text(), nl=False)

@@ -368,7 +368,7 @@ class Container(Node):
     ):
         super().__init__(name, outcomes, rt, io)
         self.initial_userdata = dict(userdata or {})
-        self.data: dict[str, Any] = {}
+        self.data: MutableMapping[str, Any] = {}
 
     @property
     def shares_userdata(self) -> bool:
@@ -381,14 +381,12 @@ class Container(Node):
             for key, value in self.initial_userdata.items():
                 if key not in target:
                     target[key] = _copy(value)
-            self.data = target  # type: ignore[assignment]
+            self.data = target
         else:
             self.data = {key: _copy(value) for key, value in self.initial_userdata.items()}
             for key in self.io.input_keys:
-                try:
+                if key in self.ud:
                     self.data[key] = self.ud[key]
-                except KeyError:
-                    pass
         self.enter_children(now)
 
     def enter_children(self, now: datetime) -> None:
@@ -514,10 +512,10 @@ class Concurrence(Container):
 
     def update(self, now: datetime) -> Status:
         for state in self.states.values():
-            if state.status in (Status.INVALID, Status.RUNNING):
-                if state.tick(now) is Status.FAILED:
-                    self._stop_all(now)
-                    return self.fail(f"{state.name}: {state.error}")
+            running = state.status in (Status.INVALID, Status.RUNNING)
+            if running and state.tick(now) is Status.FAILED:
+                self._stop_all(now)
+                return self.fail(f"{state.name}: {state.error}")
         for outcome, wanted in self.outcome_map.items():
             if all(
                 self.states[child].status is Status.DONE and self.states[child].outcome == out
@@ -531,7 +529,8 @@ class Concurrence(Container):
 
     def _stop_all(self, now: datetime) -> None:
         for state in self.states.values():
-            state.stop(now) if state.status is Status.RUNNING else None
+            if state.status is Status.RUNNING:
+                state.stop(now)
 
     def describe(self) -> dict[str, Any]:
         out = super().describe()

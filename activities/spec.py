@@ -242,7 +242,7 @@ class _Checker:
 def parse_text(text: str, where: str, path: Path | None = None) -> BehaviorSpec:
     """Parse and check one behavior; raise BehaviorError naming file, line and state."""
     try:
-        data = yaml.load(text, Loader=_Loader)  # noqa: S506 - a SafeLoader subclass
+        data = yaml.load(text, Loader=_Loader)
     except yaml.YAMLError as error:
         mark = getattr(error, "problem_mark", None)
         line = f":{mark.line + 1}" if mark is not None else ""
@@ -296,7 +296,9 @@ def _check_params(
         spec = specs.get(key)
         if spec is None:
             known = ", ".join(specs)
-            checker.problem(_line(params, key), path, f"{block}: unknown parameter {key!r} ({known})")
+            checker.problem(
+                _line(params, key), path, f"{block}: unknown parameter {key!r} ({known})"
+            )
         elif not type_ok(value, spec):
             expected = spec.type + (f" one of {list(spec.enum)}" if spec.enum else "")
             checker.problem(
@@ -332,7 +334,9 @@ def _parse_state(
         else:
             for child_name, child in raw_children.items():
                 child_path = f"{path}/{child_name}" if path else str(child_name)
-                spec = parse_state_entry(checker, child_path, child, _line(raw_children, child_name))
+                spec = parse_state_entry(
+                    checker, child_path, child, _line(raw_children, child_name)
+                )
                 if spec is not None:
                     children[str(child_name)] = spec
     own = {k: plain(v) for k, v in checked.items() if k != child_key}
@@ -397,14 +401,26 @@ def _check_machine(checker: _Checker, state: StateSpec, path: str) -> None:
             for outcome, target in child.transitions.items():
                 line = lines.get(outcome, child.line)
                 if target not in state.states and target not in outcomes:
-                    checker.problem(line, prefix + name, f"transition {outcome!r} goes to missing state {target!r}")
+                    checker.problem(
+                        line,
+                        prefix + name,
+                        f"transition {outcome!r} goes to missing state {target!r}",
+                    )
                 declared = child.outcomes()
                 if child.block != "behavior" and outcome not in declared and outcome != PREEMPTED:
-                    checker.problem(line, prefix + name, f"{child.block} has no outcome {outcome!r} (it has {list(declared)})")
+                    checker.problem(
+                        line,
+                        prefix + name,
+                        f"{child.block} has no outcome {outcome!r} (it has {list(declared)})",
+                    )
             if child.block != "behavior":
                 for outcome in child.outcomes():
                     if outcome not in child.transitions and outcome not in outcomes:
-                        checker.problem(child.line, prefix + name, f"outcome {outcome!r} leads nowhere (add a transition)")
+                        checker.problem(
+                            child.line,
+                            prefix + name,
+                            f"outcome {outcome!r} leads nowhere (add a transition)",
+                        )
         if initial in state.states:
             seen = {initial}
             todo = [initial]
@@ -427,16 +443,25 @@ def _check_machine(checker: _Checker, state: StateSpec, path: str) -> None:
             if outcome not in outcomes:
                 checker.problem(state.line, path, f"outcome_map: {outcome!r} is not an outcome")
             if not isinstance(wanted, dict):
-                checker.problem(state.line, path, f"outcome_map: {outcome!r} must map states to outcomes")
+                checker.problem(
+                    state.line, path, f"outcome_map: {outcome!r} must map states to outcomes"
+                )
                 continue
             for child, child_outcome in wanted.items():
                 if child not in state.states:
                     checker.problem(state.line, path, f"outcome_map: no state {child!r}")
-                elif child_outcome not in (*state.states[child].outcomes(), PREEMPTED) and state.states[child].block != "behavior":
-                    checker.problem(state.line, path, f"outcome_map: {child} has no outcome {child_outcome!r}")
+                elif (
+                    child_outcome not in (*state.states[child].outcomes(), PREEMPTED)
+                    and state.states[child].block != "behavior"
+                ):
+                    checker.problem(
+                        state.line, path, f"outcome_map: {child} has no outcome {child_outcome!r}"
+                    )
         for name, child in state.states.items():
             if child.transitions:
-                checker.problem(child.line, prefix + name, "states of a concurrence have no transitions")
+                checker.problem(
+                    child.line, prefix + name, "states of a concurrence have no transitions"
+                )
     elif state.block == "iterator":
         continue_on = set(state.params.get("continue_on") or [])
         break_on = state.params.get("break_on") or {}
@@ -445,10 +470,16 @@ def _check_machine(checker: _Checker, state: StateSpec, path: str) -> None:
                 continue
             for outcome in child.outcomes():
                 if outcome not in continue_on and outcome not in break_on:
-                    checker.problem(child.line, prefix + name, f"outcome {outcome!r} is neither in continue_on nor in break_on")
+                    checker.problem(
+                        child.line,
+                        prefix + name,
+                        f"outcome {outcome!r} is neither in continue_on nor in break_on",
+                    )
         items = state.params.get("items")
         if not (isinstance(items, list | int) or is_single_placeholder(items)):
-            checker.problem(state.line, path, "iterator: items must be a list, a count or a placeholder")
+            checker.problem(
+                state.line, path, "iterator: items must be a list, a count or a placeholder"
+            )
     for name, child in state.states.items():
         _check_machine(checker, child, prefix + name)
 
@@ -528,7 +559,10 @@ def json_schema() -> dict[str, Any]:
     """The published JSON Schema of behavior files (``dms behavior schema``)."""
     state_variants = []
     names = {"type": "array", "items": {"type": "string"}}
-    for block, specs in [*((b, cls.PARAMS) for b, cls in BLOCKS.items()), *CONTAINER_PARAMS.items()]:
+    for block, specs in [
+        *((b, cls.PARAMS) for b, cls in BLOCKS.items()),
+        *CONTAINER_PARAMS.items(),
+    ]:
         props: dict[str, Any] = {}
         for key, spec in specs.items():
             if key in ("states",):
