@@ -12,7 +12,7 @@ from typing import Annotated, Literal
 
 import typer
 
-from sim.errors import SimError
+from sim.errors import ExpectationFailed, SimError
 
 app = typer.Typer(no_args_is_help=True)
 
@@ -61,12 +61,10 @@ def run_command(
     failure = result.first_failure
     if failure is not None:
         line = f":{failure.line}" if failure.line else ""
-        print(
-            f"dms: {result.path}{line}: expectation {failure.index} failed: "
-            f"{failure.description}: {failure.detail}",
-            file=sys.stderr,
+        raise ExpectationFailed(
+            f"{result.path}{line}: expectation {failure.index} failed: "
+            f"{failure.description}: {failure.detail}"
         )
-        raise typer.Exit(1)
 
 
 @app.command("study")
@@ -170,7 +168,11 @@ def replay_command(
     if report.truncated:
         print(f"dms: {recording}: truncated: {report.truncated}", file=sys.stderr)
     if not report.same:
-        raise typer.Exit(1)
+        first = report.differences[0]
+        raise SimError(
+            f"{recording}: {len(report.differences)} difference(s) from the recorded "
+            f"decisions, the first at {first.time}"
+        )
 
 
 @app.command("robot")
