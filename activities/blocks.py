@@ -322,8 +322,8 @@ class WaitEvent(Wait):
             if event.choice.strip().lower() in wanted:
                 self.got = event.choice
         elif isinstance(event, Speech):
-            spoken = f" {' '.join(event.text.lower().split())} "
-            hit = next((k for k in self.args["keywords"] if f" {k.lower()} " in spoken), None)
+            spoken = _words(event.text)
+            hit = next((k for k in self.args["keywords"] if _words(k) in spoken), None)
             self.got = hit
         return self.got is not None
 

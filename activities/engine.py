@@ -26,6 +26,7 @@ status: ``INVALID`` means it was stopped from outside). On top come SMACH's sema
 from __future__ import annotations
 
 import functools
+import re
 from collections.abc import Callable, Mapping, MutableMapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
@@ -635,8 +636,13 @@ class Trigger:
             return event.part in self.touch
         if isinstance(event, ScreenChoice):
             return event.choice.strip().lower() in self.screen
-        spoken = f" {' '.join(event.text.lower().split())} "
-        return any(f" {keyword} " in spoken for keyword in self.keywords)
+        spoken = words(event.text)
+        return any(words(keyword) in spoken for keyword in self.keywords)
+
+
+def words(text: str) -> str:
+    """Lower-case words between spaces, for whole-word matching of keywords."""
+    return " " + " ".join(re.findall(r"[\w']+", text.lower())) + " "
 
 
 class Guard(Container):

@@ -32,7 +32,9 @@ class FakeRules:
     table: dict[str, list[str]] = field(default_factory=dict)
     asked: list[str] = field(default_factory=list)
 
-    def evaluate(self, component: str, params: Mapping[str, Mapping[str, Any]]) -> FakeResult | None:
+    def evaluate(
+        self, component: str, params: Mapping[str, Mapping[str, Any]]
+    ) -> FakeResult | None:
         self.asked.append(component)
         if component not in self.table:
             return None

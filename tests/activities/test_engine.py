@@ -447,7 +447,8 @@ def test_screen_choice_answers_a_question(bench: Bench) -> None:
     activity = bench.start(bench.create("quiz"))
     bench.run_until(activity, lambda: activity.state_path.endswith("ASK"))
     wrong = next(
-        c for c in activity.userdata["question"]["choices"]
+        c
+        for c in activity.userdata["question"]["choices"]
         if c != activity.userdata["question"]["answer"]
     )
     assert activity.deliver(ScreenChoice(choice=wrong))
