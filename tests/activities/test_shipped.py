@@ -63,7 +63,7 @@ def test_sleep_and_wait_run_until_cancelled(bench: Bench, name: str) -> None:
     bench.advance(activity, 3600, step=5)
     assert activity.status is ActivityStatus.RUNNING
     activity.cancel(bench.now)
-    assert activity.status is ActivityStatus.CANCELLED
+    assert activity.tick(bench.now) is ActivityStatus.CANCELLED
 
 
 def test_sleep_shows_closed_eyes_and_dim_leds(bench: Bench) -> None:
