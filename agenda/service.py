@@ -1,0 +1,511 @@
+"""The agenda: events and reminders per user, stored in the daemon's database.
+
+The controller calls :meth:`Agenda.due` on every tick; it answers from the
+in-memory :class:`agenda.index.AgendaIndex`, without SQL. Deliveries are written at
+once (:meth:`Agenda.delivered`); misses are queued and written within
+:data:`FLUSH_AFTER_S` (and before any read of the log), which keeps the tick cheap.
+A miss that is lost in a crash is found again on restart, because the item's cursor
+in the database moves only when its occurrence is logged.
+
+The agenda is not thread-safe by design of its callers (the daemon serializes its
+ticks and queries); a lock guards it anyway.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import UTC, datetime, timedelta
+
+from sqlalchemy import Engine, delete, select, update
+from sqlalchemy.exc import IntegrityError, SQLAlchemyError
+from sqlalchemy.orm import Session, sessionmaker
+
+from agenda import migrations
+from agenda.errors import AgendaError, AgendaNotFound
+from agenda.index import US_PER_S, AgendaIndex, Entry, MissedRun
+from agenda.items import (
+    AgendaItem,
+    DueItem,
+    ItemKind,
+    ItemSpec,
+    Occurrence,
+    Outcome,
+    Priority,
+    UpcomingItem,
+)
+from agenda.models import ItemRow, OccurrenceRow
+from agenda.schedule import (
+    MAX_EVERY_S,
+    Schedule,
+    ScheduleKind,
+    build,
+    from_us,
+    localize,
+    to_us,
+    zone,
+)
+from dms.activity_names import ACTIVITIES
+from memory.db import make_engine
+
+log = logging.getLogger(__name__)
+
+FLUSH_AFTER_S = 300
+"""Longest time a recorded miss waits in memory before it is written."""
+RETRY_AFTER_S = 5
+MAX_LEAD_S = 86400
+MAX_GRACE_S = 7 * 86400
+MAX_TEXT = 500
+_USER_CHARS = frozenset("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-.")
+
+
+@dataclass(frozen=True, slots=True)
+class _Delivery:
+    item: AgendaItem
+    fire_us: int
+    recorded_us: int
+    cursor_us: int | None
+
+
+def _one_line(error: BaseException) -> str:
+    text = str(getattr(error, "orig", None) or error)
+    return text.splitlines()[0] if text else type(error).__name__
+
+
+class Agenda:
+    """Every user's events and reminders; the controller's view of what is due."""
+
+    def __init__(self, url: str, user_exists: Callable[[str], bool] | None = None) -> None:
+        self._user_exists = user_exists
+        self._lock = threading.RLock()
+        self._index = AgendaIndex()
+        self._queue: list[MissedRun | _Delivery] = []
+        self._flush_at_us: int | None = None
+        self._schedules: dict[tuple[str, str, str, datetime | None], Schedule] = {}
+        self.problems: list[str] = []
+        """Stored items that could not be loaded (bad spec, unknown zone), one line each."""
+        try:
+            self._engine: Engine = make_engine(url)
+            self._prepare_schema()
+            self._sessions = sessionmaker(self._engine, expire_on_commit=False)
+            self._load(None)
+        except SQLAlchemyError as error:
+            raise AgendaError(f"cannot open the agenda at {url}: {_one_line(error)}") from None
+
+    # ------------------------------------------------------------------ schema
+
+    def _prepare_schema(self) -> None:
+        head = migrations.head()
+        with self._engine.connect() as connection:
+            revision = migrations.current(connection)
+            installed = migrations.installed(connection)
+        if revision == head:
+            return
+        if revision is None and not installed:
+            try:
+                migrations.upgrade_engine(self._engine)
+            except SQLAlchemyError:
+                # Another process may have created it at the same time.
+                with self._engine.connect() as connection:
+                    if migrations.current(connection) != head:
+                        raise
+            return
+        raise AgendaError(
+            f"the agenda's tables are at revision {revision or 'none'}, this dms needs "
+            f"{head}: run `dms db upgrade`"
+        )
+
+    def close(self) -> None:
+        """Write what is queued and release the database."""
+        with self._lock:
+            self._flush()
+            self._engine.dispose()
+
+    # ------------------------------------------------------------------ management
+
+    def add(self, spec: ItemSpec, now: datetime) -> AgendaItem:
+        """Store a new item; AgendaError (one line, nothing stored) when it is invalid."""
+        row, schedule = self._validate(spec, now)
+        with self._lock:
+            try:
+                with self._sessions.begin() as session:
+                    session.add(row)
+                    session.flush()
+                    item = _item(row)
+            except SQLAlchemyError as error:
+                raise AgendaError(f"cannot store the agenda item: {_one_line(error)}") from None
+            self._index.put(self._entry(item, schedule))
+            return item
+
+    def get(self, item_id: int) -> AgendaItem:
+        """The stored item ``item_id``; AgendaNotFound if there is none."""
+        with self._lock, self._sessions() as session:
+            row = session.get(ItemRow, item_id)
+            if row is None:
+                raise AgendaNotFound(f"no agenda item {item_id}")
+            return _item(row)
+
+    def remove(self, item_id: int) -> None:
+        """Delete item ``item_id`` (its log stays); AgendaNotFound if there is none."""
+        with self._lock:
+            self._flush()
+            try:
+                with self._sessions.begin() as session:
+                    deleted = session.execute(delete(ItemRow).where(ItemRow.id == item_id))
+            except SQLAlchemyError as error:
+                raise AgendaError(
+                    f"cannot remove agenda item {item_id}: {_one_line(error)}"
+                ) from None
+            known = self._index.drop(item_id)
+            if not deleted.rowcount and not known:  # type: ignore[attr-defined]
+                raise AgendaNotFound(f"no agenda item {item_id}")
+
+    def upcoming(self, user_id: str | None, now: datetime, limit: int = 20) -> list[UpcomingItem]:
+        """Each item's next occurrence (or the one waiting now), soonest first.
+
+        Reads the database first, so it shows items added by another process.
+        """
+        with self._lock:
+            self._flush()
+            self._load(user_id)
+            return self._index.upcoming(user_id, to_us(now), max(0, limit))
+
+    # ------------------------------------------------------------------ the controller
+
+    def user_perceived(self, user_id: str, now: datetime) -> None:
+        """The robot sees ``user_id``: load their schedule from the database (paper, step 5)."""
+        with self._lock:
+            self._flush()
+            self._load(user_id)
+            self._advance(to_us(now), down=False)
+
+    def recover(self, now: datetime) -> list[DueItem]:
+        """At daemon start: settle what fell due while it was down.
+
+        Occurrences still within their grace time wait for their user (and come out of
+        :meth:`due`); older ones are recorded as missed. Returns those that wait.
+        """
+        with self._lock:
+            self._advance(to_us(now), down=True)
+            self._flush()
+            return self._index.all_waiting()
+
+    def due(self, now: datetime, present_user: str | None) -> list[DueItem]:
+        """What is due now for ``present_user``, highest priority first. Called every tick.
+
+        Items of absent users wait up to their grace time and are then recorded as
+        missed by this call.
+        """
+        now_us = to_us(now)
+        with self._lock:
+            if self._index.has_work(now_us):
+                self._advance(now_us, down=False)
+            if self._flush_at_us is not None and now_us >= self._flush_at_us:
+                try:
+                    self._flush()
+                except AgendaError as error:
+                    log.warning("%s; retrying in %s s", error, RETRY_AFTER_S)
+                    self._flush_at_us = now_us + RETRY_AFTER_S * US_PER_S
+            if present_user is None:
+                return []
+            return self._index.waiting_for(present_user)
+
+    def delivered(self, item: DueItem, now: datetime) -> None:
+        """``item`` was started or spoken: log it and schedule its next occurrence.
+
+        The agenda moves on at once, so the occurrence is never returned again; if the
+        database is unavailable the record is kept and written later.
+        """
+        fire_us = to_us(item.fire_time)
+        now_us = to_us(now)
+        with self._lock:
+            cursor = self._index.next_after_delivery(item.item_id, fire_us)
+            stored = self._index.entries[item.item_id].item
+            self._index.delivered(item.item_id, cursor)
+            self._queue.append(_Delivery(stored, fire_us, now_us, cursor))
+            try:
+                self._flush()
+            except AgendaError as error:
+                log.warning("%s; retrying in %s s", error, RETRY_AFTER_S)
+                self._flush_at_us = now_us + RETRY_AFTER_S * US_PER_S
+
+    # ------------------------------------------------------------------ the log
+
+    def missed_log(self, user_id: str | None) -> list[Occurrence]:
+        """What was missed (runs of occurrences), oldest first; every user for None."""
+        return self.history(user_id, Outcome.MISSED)
+
+    def history(self, user_id: str | None, outcome: Outcome | None = None) -> list[Occurrence]:
+        """Deliveries and misses, oldest first."""
+        with self._lock:
+            self._flush()
+            query = select(OccurrenceRow).order_by(OccurrenceRow.fire_time, OccurrenceRow.id)
+            if user_id is not None:
+                query = query.where(OccurrenceRow.user_id == user_id)
+            if outcome is not None:
+                query = query.where(OccurrenceRow.outcome == str(outcome))
+            with self._sessions() as session:
+                return [_occurrence(row) for row in session.scalars(query)]
+
+    # ------------------------------------------------------------------ internals
+
+    def _advance(self, now_us: int, down: bool) -> None:
+        runs = self._index.advance(now_us, down)
+        if runs:
+            self._queue.extend(runs)
+            if self._flush_at_us is None:
+                self._flush_at_us = now_us + FLUSH_AFTER_S * US_PER_S
+
+    def _flush(self) -> None:
+        """Write queued misses and deliveries, each with its item's new cursor."""
+        if not self._queue:
+            self._flush_at_us = None
+            return
+        try:
+            with self._sessions.begin() as session:
+                for record in self._queue:
+                    _write(session, record)
+        except SQLAlchemyError as error:
+            raise AgendaError(f"cannot write the agenda's log: {_one_line(error)}") from None
+        self._queue.clear()
+        self._flush_at_us = None
+
+    def _load(self, user_id: str | None) -> None:
+        """Bring the index in line with the database, for one user or everyone."""
+        query = select(ItemRow).where(ItemRow.next_fire.is_not(None))
+        if user_id is not None:
+            query = query.where(ItemRow.user_id == user_id)
+        with self._sessions() as session:
+            rows = list(session.scalars(query))
+        seen: set[int] = set()
+        for row in rows:
+            seen.add(row.id)
+            known = self._index.entries.get(row.id)
+            if (
+                known is not None
+                and row.next_fire is not None
+                and known.cursor_us == to_us(row.next_fire)
+            ):
+                continue
+            try:
+                item = _item(row)
+                schedule = self._schedule(item.schedule, item.spec, item.tz, row.anchor)
+            except AgendaError as error:
+                problem = f"agenda item {row.id} cannot be loaded: {error}"
+                if problem not in self.problems:
+                    self.problems.append(problem)
+                    log.warning("%s", problem)
+                continue
+            self._index.put(self._entry(item, schedule))
+        stale = (
+            self._index.user_items(user_id) if user_id is not None else list(self._index.entries)
+        )
+        for item_id in stale:
+            if item_id not in seen:
+                self._index.drop(item_id)
+
+    def _entry(self, item: AgendaItem, schedule: Schedule) -> Entry:
+        assert item.next_fire is not None
+        return Entry(
+            item=item,
+            schedule=schedule,
+            cursor_us=to_us(item.next_fire),
+            lead_us=item.lead_s * US_PER_S,
+            grace_us=item.grace_s * US_PER_S,
+        )
+
+    def _schedule(self, kind: str, spec: str, tz: str, anchor: datetime | None) -> Schedule:
+        key = (kind, spec, tz, anchor)
+        schedule = self._schedules.get(key)
+        if schedule is None:
+            try:
+                schedule_kind = ScheduleKind(kind)
+            except ValueError:
+                raise AgendaError(f"unknown schedule {kind!r}") from None
+            schedule = build(schedule_kind, spec, tz, anchor)
+            self._schedules[key] = schedule
+        return schedule
+
+    def _validate(self, spec: ItemSpec, now: datetime) -> tuple[ItemRow, Schedule]:
+        """The row to store for ``spec``, or AgendaError naming what is wrong."""
+        if now.tzinfo is None:
+            raise AgendaError("now must be timezone-aware")
+        user_id = spec.user_id
+        if not user_id or len(user_id) > 64 or not set(user_id) <= _USER_CHARS:
+            raise AgendaError(f"invalid user id {user_id!r} (letters, digits, _ - . up to 64)")
+        activity, text = spec.activity, spec.text
+        if spec.kind is ItemKind.EVENT:
+            if not activity:
+                raise AgendaError("an event needs an activity")
+            if activity not in ACTIVITIES:
+                raise AgendaError(
+                    f"unknown activity {activity!r} (one of: {', '.join(ACTIVITIES)})"
+                )
+            if text is not None:
+                raise AgendaError("an event runs an activity and has no text")
+        else:
+            if activity is not None:
+                raise AgendaError("a reminder has a text, not an activity")
+            text = (text or "").strip()
+            if not text:
+                raise AgendaError("a reminder needs a text")
+            if len(text) > MAX_TEXT:
+                raise AgendaError(f"a reminder's text is at most {MAX_TEXT} characters")
+        chosen = [name for name in ("at", "cron", "every") if getattr(spec, name) is not None]
+        if len(chosen) != 1:
+            raise AgendaError("give exactly one of at, cron or every")
+        if not 0 <= spec.lead_s <= MAX_LEAD_S:
+            raise AgendaError(f"lead_s must be between 0 and {MAX_LEAD_S}")
+        if not 0 <= spec.grace_s <= MAX_GRACE_S:
+            raise AgendaError(f"grace_s must be between 0 and {MAX_GRACE_S}")
+        tz = zone(spec.tz)
+        anchor: datetime | None = None
+        if spec.at is not None:
+            kind = ScheduleKind.AT
+            fire = localize(spec.at, tz)
+            if fire + timedelta(seconds=spec.grace_s) < now:
+                raise AgendaError(f"{spec.at.isoformat()} is in the past")
+            text_spec = fire.isoformat()
+        elif spec.cron is not None:
+            kind = ScheduleKind.CRON
+            text_spec = " ".join(spec.cron.split())
+        else:
+            kind = ScheduleKind.EVERY
+            every = spec.every
+            assert every is not None
+            if not 1 <= every <= MAX_EVERY_S:
+                raise AgendaError(f"every must be between 1 and {MAX_EVERY_S} seconds")
+            if spec.lead_s >= every:
+                raise AgendaError("lead_s must be shorter than the interval")
+            anchor = (now + timedelta(seconds=every)).astimezone(UTC)
+            text_spec = str(every)
+        schedule = build(kind, text_spec, spec.tz, anchor)
+        first = schedule.first_at_or_after(now)
+        if first is None:
+            raise AgendaError(f"the cron expression {text_spec!r} never fires")
+        if kind is ScheduleKind.CRON and spec.lead_s:
+            _check_lead(schedule, first, spec.lead_s)
+        if self._user_exists is not None and not self._user_exists(user_id):
+            raise AgendaError(f"unknown user {user_id!r}")
+        row = ItemRow(
+            user_id=user_id,
+            kind=str(spec.kind),
+            activity=activity,
+            text=text,
+            schedule=str(kind),
+            spec=text_spec,
+            anchor=anchor,
+            tz=spec.tz,
+            priority=str(spec.priority),
+            lead_s=spec.lead_s,
+            grace_s=spec.grace_s,
+            created_at=now.astimezone(UTC),
+            next_fire=first.astimezone(UTC),
+        )
+        return row, schedule
+
+
+def _check_lead(schedule: Schedule, first: datetime, lead_s: int) -> None:
+    """A lead time must be shorter than the gaps between the next few occurrences."""
+    fire: datetime | None = first
+    for _ in range(8):
+        assert fire is not None
+        after = schedule.after(fire)
+        if after is None:
+            return
+        if (after - fire).total_seconds() <= lead_s:
+            raise AgendaError("lead_s must be shorter than the time between occurrences")
+        fire = after
+
+
+def _write(session: Session, record: MissedRun | _Delivery) -> None:
+    item = record.item
+    if isinstance(record, _Delivery):
+        row = _log_row(
+            item, Outcome.DELIVERED, record.fire_us, record.fire_us, 1, record.recorded_us, ""
+        )
+        cursor = record.cursor_us
+    else:
+        reason = record.reason if record.exact else f"{record.reason} (at least this many)"
+        row = _log_row(
+            item,
+            Outcome.MISSED,
+            record.first_us,
+            record.last_us,
+            record.count,
+            record.recorded_us,
+            reason,
+        )
+        cursor = record.cursor_us
+    try:
+        with session.begin_nested():
+            session.add(row)
+    except IntegrityError:
+        log.warning("agenda item %s at %s was already logged", item.item_id, row.fire_time)
+    session.execute(
+        update(ItemRow)
+        .where(ItemRow.id == item.item_id)
+        .values(next_fire=None if cursor is None else from_us(cursor))
+    )
+
+
+def _log_row(
+    item: AgendaItem,
+    outcome: Outcome,
+    first_us: int,
+    last_us: int,
+    count: int,
+    recorded_us: int,
+    reason: str,
+) -> OccurrenceRow:
+    return OccurrenceRow(
+        item_id=item.item_id,
+        user_id=item.user_id,
+        kind=str(item.kind),
+        what=item.text if item.kind is ItemKind.REMINDER and item.text else item.activity or "",
+        outcome=str(outcome),
+        fire_time=from_us(first_us),
+        last_fire_time=from_us(last_us),
+        count=count,
+        recorded_at=from_us(recorded_us),
+        reason=reason,
+    )
+
+
+def _item(row: ItemRow) -> AgendaItem:
+    try:
+        kind, priority = ItemKind(row.kind), Priority(row.priority)
+    except ValueError as error:
+        raise AgendaError(str(error)) from None
+    return AgendaItem(
+        item_id=row.id,
+        user_id=row.user_id,
+        kind=kind,
+        activity=row.activity,
+        text=row.text,
+        schedule=row.schedule,
+        spec=row.spec,
+        tz=row.tz,
+        priority=priority,
+        lead_s=row.lead_s,
+        grace_s=row.grace_s,
+        created_at=row.created_at,
+        next_fire=row.next_fire,
+    )
+
+
+def _occurrence(row: OccurrenceRow) -> Occurrence:
+    return Occurrence(
+        item_id=row.item_id,
+        user_id=row.user_id,
+        kind=ItemKind(row.kind),
+        what=row.what,
+        outcome=Outcome(row.outcome),
+        fire_time=row.fire_time,
+        last_fire_time=row.last_fire_time,
+        count=row.count,
+        recorded_at=row.recorded_at,
+        reason=row.reason,
+    )
