@@ -362,7 +362,7 @@ def parse_state_entry(checker: _Checker, path: str, raw: Any, line: int) -> Stat
     spec = _parse_state(checker, path, block, raw[block], _line(raw, block))
     if spec is None:
         return None
-    spec.line = _line(raw, block) or line
+    spec.line = line or _line(raw, block)
     present = []
     for key in STATE_KEYS:
         if key not in raw:

@@ -138,6 +138,12 @@ class ExpressionArbiter:
 
     def interrupt(self, handle: CommandHandle, now: datetime) -> None:
         """Withdraw one command: dequeue it, or stop it on the robot."""
+        self._withdraw(handle, now)
+        lane = self._channels.get(handle.channel)
+        if lane is not None:
+            self._dispatch(lane, now)
+
+    def _withdraw(self, handle: CommandHandle, now: datetime) -> None:
         if handle.finished:
             return
         lane = self._channels.get(handle.channel)
@@ -148,16 +154,17 @@ class ExpressionArbiter:
         if lane.active is handle:
             lane.active = None
             if handle.command_id is not None:
+                self._by_id.pop(handle.command_id, None)
                 self.robot.interrupt(handle.command_id, now)
         handle.status = CommandStatus.INTERRUPTED
-        self._dispatch(lane, now)
 
     def interrupt_source(self, source: str, now: datetime) -> None:
         """Withdraw every queued and running command of ``source``."""
         for lane in list(self._channels.values()):
-            for handle in [h for h in [lane.active, *lane.queue] if h is not None]:
-                if handle.source == source:
-                    self.interrupt(handle, now)
+            mine = [h for h in [*lane.queue, lane.active] if h is not None and h.source == source]
+            for handle in mine:
+                self._withdraw(handle, now)
+            self._dispatch(lane, now)
 
     def active(self, channel: str) -> CommandHandle | None:
         """The command the robot is executing on ``channel``, if any."""
