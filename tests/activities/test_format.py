@@ -133,13 +133,14 @@ def test_cycle_of_behavior_references(tmp_path: Path) -> None:
 
 
 def test_other_mistakes_are_named(tmp_path: Path) -> None:
+    head = "name: x\noutcomes: [done]\nstates:\n"
     cases = {
-        "name: x\noutcomes: [done]\nstates:\n  S:\n    speak: {txt: hi}\n": "unknown parameter 'txt'",
-        "name: x\noutcomes: [done]\nstates:\n  S:\n    speak: {}\n": "missing parameter 'text'",
-        "name: x\noutcomes: [done]\nstates:\n  S:\n    check: {value: 1}\n": "outcome 'met' leads nowhere",
-        "name: x\noutcomes: [done]\nstates:\n  S: {speak: {text: a}, wait: {}}\n": "exactly one block",
+        head + "  S:\n    speak: {txt: hi}\n": "unknown parameter 'txt'",
+        head + "  S:\n    speak: {}\n": "missing parameter 'text'",
+        head + "  S:\n    check: {value: 1}\n": "outcome 'met' leads nowhere",
+        head + "  S: {speak: {text: a}, wait: {}}\n": "exactly one block",
         "name: x\noutcomes: [done]\nstates: [1, 2\n": "not valid YAML",
-        "name: x\noutcomes: [done]\nstates:\n  S:\n    speak: {text: a}\n    transitions: {finished: done}\n": "has no outcome 'finished'",
+        head + "  S:\n    speak: {text: a}\n    transitions: {over: done}\n": "no outcome 'over'",
         "- just\n- a list\n": "a behavior file is a mapping",
     }
     for text, expected in cases.items():
