@@ -1,0 +1,119 @@
+"""``dms behavior``: check, show, step (scripted stdin), run, schema."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from activities import BehaviorError
+from activities.cli import app
+from activities.library import BEHAVIORS_DIR
+from activities.spec import SCHEMA_PATH
+
+runner = CliRunner()
+QUIZ = str(BEHAVIORS_DIR / "quiz.yaml")
+
+
+def test_check_accepts_good_files_and_names_bad_ones(tmp_path: Path) -> None:
+    good = runner.invoke(app, ["check", QUIZ, str(BEHAVIORS_DIR / "dance.yaml")])
+    assert good.exit_code == 0
+    assert good.output.count(": ok") == 2
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: bad\noutcomes: [done]\nstates:\n  A:\n    speak: {text: 3.5, loud: 1}\n")
+    result = runner.invoke(app, ["check", QUIZ, str(bad)])
+    assert result.exit_code == 1
+    lines = result.output.strip().splitlines()
+    assert lines[0].endswith("quiz.yaml: ok")
+    assert lines[1] == f"{bad}:5: state A: speak: parameter 'text' must be string, not float 3.5"
+    assert lines[2].startswith(f"{bad}:5: state A: speak: unknown parameter 'loud'")
+
+
+def test_show_draws_dot_and_mermaid_with_clusters() -> None:
+    dot = runner.invoke(app, ["show", QUIZ, "--format", "dot", "--active", "GAME/ROUNDS"])
+    assert dot.exit_code == 0
+    assert dot.output.startswith('digraph "quiz"')
+    assert "subgraph cluster_s_GAME {" in dot.output
+    assert "subgraph cluster_s_GAME_ROUNDS_ROUND {" in dot.output
+    assert 's_INTRO -> s_PICK [label="done"' in dot.output
+    assert 'fillcolor="#fff8e1"' in dot.output  # the active cluster is highlighted
+    mermaid = runner.invoke(app, ["show", QUIZ, "--format", "mermaid"])
+    assert mermaid.exit_code == 0
+    assert mermaid.output.startswith("stateDiagram-v2")
+    assert 'state "GAME [guard]" as s_GAME {' in mermaid.output
+    assert "s_GAME --> s_RESULT : touched" in mermaid.output
+
+
+def test_show_refuses_a_bad_file(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: bad\noutcomes: [done]\nstates:\n  A:\n    dance_wildly: {}\n")
+    result = runner.invoke(app, ["show", str(bad)])
+    assert isinstance(result.exception, BehaviorError)
+    assert "bad.yaml:5: state A: unknown block 'dance_wildly'" in str(result.exception)
+
+
+def test_step_goes_one_state_per_enter_and_takes_answers(tmp_path: Path) -> None:
+    colour = tmp_path / "colour.yaml"
+    colour.write_text(
+        "name: colour\noutcomes: [done]\nstates:\n"
+        "  HELLO:\n    speak: {text: 'Hello {user.name}'}\n    transitions: {done: ASK}\n"
+        "  ASK:\n    ask: {question: 'Red or blue?', choices: [red, blue]}\n"
+        "    transitions: {answered: SAY, no_answer: done}\n"
+        "  SAY:\n    speak: {text: 'You said {answer}'}\n"
+    )
+    result = runner.invoke(app, ["step", str(colour), "--user", "ana"], input="\nblue\n\n")
+    assert result.exit_code == 0, result.output
+    lines = [line.removeprefix("> ") for line in result.output.splitlines()]
+    states = [line.split()[-1] for line in lines if line.startswith("[")]
+    assert states == ["HELLO", "ASK", "SAY", "-"]
+    assert 'robot: cmd-1 speech.say {"text": "Hello Ana"}' in result.output
+    assert "event taken" in result.output
+    assert '"answer": "blue"' in result.output  # userdata is printed
+    assert "You said blue" in result.output
+    assert result.output.strip().endswith("completed: done")
+
+
+def test_step_can_be_stopped() -> None:
+    result = runner.invoke(app, ["step", QUIZ], input="\nq\n")
+    assert result.exit_code == 0
+    assert result.output.strip().endswith("cancelled: cancelled")
+
+
+def test_step_runs_on_at_the_end_of_input() -> None:
+    result = runner.invoke(app, ["step", str(BEHAVIORS_DIR / "jokes.yaml")], input="\n")
+    assert result.exit_code == 0
+    assert result.output.strip().endswith("completed: done")
+    assert result.output.count("speech.say") == 8
+
+
+def test_run_answers_and_reports_json() -> None:
+    result = runner.invoke(
+        app, ["run", str(BEHAVIORS_DIR / "menu.yaml"), "--answer", "let's do the quiz", "--json"]
+    )
+    assert result.exit_code == 0
+    summary = json.loads(result.output)
+    assert summary["status"] == "completed"
+    assert summary["redirect"] == "quiz"
+    notification = runner.invoke(
+        app, ["run", str(BEHAVIORS_DIR / "notification.yaml"), "--text", "Lunch time."]
+    )
+    assert "Lunch time." in notification.output
+    assert notification.output.strip().splitlines()[-1].startswith("completed: done after")
+
+
+@pytest.mark.parametrize("name", ["sleep", "wait"])
+def test_run_cancels_endless_behaviors_after_max_s(name: str) -> None:
+    result = runner.invoke(
+        app, ["run", str(BEHAVIORS_DIR / f"{name}.yaml"), "--max-s", "60", "--json"]
+    )
+    summary = json.loads(result.output)
+    assert summary["status"] == "cancelled"
+    assert 60 <= summary["seconds"] <= 61
+
+
+def test_schema_prints_the_published_schema() -> None:
+    result = runner.invoke(app, ["schema"])
+    assert result.exit_code == 0
+    assert json.loads(result.output) == json.loads(SCHEMA_PATH.read_text())
