@@ -1,0 +1,136 @@
+"""Cost per tick and per state transition of a three-level machine, beside py_trees.
+
+Both sides run the same shape: three nested containers (state machines here,
+memory Sequences in py_trees) around two leaves; each leaf runs for ``HOLD`` ticks
+and then finishes, so the machine alternates between ticks that only run and ticks
+that change state. A pure "running" measurement ticks a leaf that never finishes.
+Prints one JSON object with nanoseconds per tick and per transition for each side
+and the ratios (ours / py_trees; at most 1 is the goal).
+
+    .venv/bin/python bench/bench_behaviors.py
+"""
+
+from __future__ import annotations
+
+import json
+import random
+import sys
+import time
+from datetime import UTC, datetime
+from pathlib import Path
+
+import py_trees
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from activities.context import ActivityContext  # noqa: E402
+from activities.engine import Node, Runtime, StateMachine, Status  # noqa: E402
+from dms.expression import ExpressionArbiter  # noqa: E402
+from sim.robot import SimRobot  # noqa: E402
+
+TICKS = 200_000
+HOLD = 1
+NOW = datetime(2026, 11, 23, 9, 0, tzinfo=UTC)
+
+
+class Blink(Node):
+    """Runs ``hold`` ticks, then finishes ``done`` (``hold`` < 0: runs forever)."""
+
+    def __init__(self, name: str, rt: Runtime, hold: int, counter: list[int]) -> None:
+        super().__init__(name, ("done",), rt)
+        self.hold = hold
+        self.counter = counter
+        self.left = 0
+
+    def initialise(self, now: datetime) -> None:
+        self.left = self.hold
+
+    def update(self, now: datetime) -> Status:
+        if self.left == 0:
+            self.counter[0] += 1
+            return Status.DONE
+        self.left -= 1
+        return Status.RUNNING
+
+
+def ours(hold: int) -> tuple[float, int]:
+    robot = SimRobot()
+    ctx = ActivityContext(
+        expression=ExpressionArbiter(robot, lambda _c: None), rng=random.Random(0)
+    )
+    rt = Runtime(ctx, {})
+    counter = [0]
+
+    def level3() -> StateMachine:
+        leaves = {"A": Blink("A", rt, hold, counter), "B": Blink("B", rt, hold, counter)}
+        return StateMachine(
+            "L3", ["done"], rt, leaves, {"A": {"done": "B"}, "B": {"done": "done"}}, "A"
+        )
+
+    level2 = StateMachine("L2", ["done"], rt, {"L3": level3()}, {"L3": {"done": "done"}}, "L3")
+    root = StateMachine("L1", ["done"], rt, {"L2": level2}, {"L2": {"done": "L2"}}, "L2")
+    root.bind({})
+    tick = root.tick
+    start = time.perf_counter()
+    for _ in range(TICKS):
+        tick(NOW)
+    elapsed = time.perf_counter() - start
+    return elapsed, counter[0]
+
+
+class PyBlink(py_trees.behaviour.Behaviour):  # type: ignore[misc]
+    def __init__(self, name: str, hold: int, counter: list[int]) -> None:
+        super().__init__(name)
+        self.hold = hold
+        self.counter = counter
+        self.left = 0
+
+    def initialise(self) -> None:
+        self.left = self.hold
+
+    def update(self) -> py_trees.common.Status:
+        if self.left == 0:
+            self.counter[0] += 1
+            return py_trees.common.Status.SUCCESS
+        self.left -= 1
+        return py_trees.common.Status.RUNNING
+
+
+def theirs(hold: int) -> tuple[float, int]:
+    counter = [0]
+    level3 = py_trees.composites.Sequence("L3", memory=True)
+    level3.add_children([PyBlink("A", hold, counter), PyBlink("B", hold, counter)])
+    level2 = py_trees.composites.Sequence("L2", memory=True)
+    level2.add_child(level3)
+    root = py_trees.composites.Sequence("L1", memory=True)
+    root.add_child(level2)
+    tree = py_trees.trees.BehaviourTree(root)
+    tick = tree.root.tick_once
+    start = time.perf_counter()
+    for _ in range(TICKS):
+        tick()
+    elapsed = time.perf_counter() - start
+    return elapsed, counter[0]
+
+
+def main() -> None:
+    figures: dict[str, float | int] = {"ticks": TICKS}
+    our_run, _ = ours(-1)
+    their_run, _ = theirs(-1)
+    our_mixed, our_transitions = ours(HOLD)
+    their_mixed, their_transitions = theirs(HOLD)
+    figures["ours_ns_per_running_tick"] = round(our_run / TICKS * 1e9, 1)
+    figures["py_trees_ns_per_running_tick"] = round(their_run / TICKS * 1e9, 1)
+    figures["ours_transitions"] = our_transitions
+    figures["py_trees_transitions"] = their_transitions
+    figures["ours_ns_per_transition"] = round(our_mixed / our_transitions * 1e9, 1)
+    figures["py_trees_ns_per_transition"] = round(their_mixed / their_transitions * 1e9, 1)
+    figures["tick_ratio"] = round(our_run / their_run, 3)
+    figures["transition_ratio"] = round(
+        (our_mixed / our_transitions) / (their_mixed / their_transitions), 3
+    )
+    print(json.dumps(figures))
+
+
+if __name__ == "__main__":
+    main()
