@@ -12,7 +12,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from datetime import datetime
 from enum import StrEnum
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
@@ -61,14 +61,14 @@ class ItemSpec(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     user_id: str
-    kind: ItemKind
+    kind: Literal["event", "reminder"]
     activity: str | None = None
     text: str | None = None
     at: datetime | None = None
     cron: str | None = None
     every: int | None = None
     tz: str = "UTC"
-    priority: Priority = Priority.NORMAL
+    priority: Literal["high", "normal"] = "normal"
     lead_s: int = 0
     grace_s: int = 600
 

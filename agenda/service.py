@@ -336,7 +336,7 @@ class Agenda:
         if not user_id or len(user_id) > 64 or not set(user_id) <= _USER_CHARS:
             raise AgendaError(f"invalid user id {user_id!r} (letters, digits, _ - . up to 64)")
         activity, text = spec.activity, spec.text
-        if spec.kind is ItemKind.EVENT:
+        if spec.kind == "event":
             if not activity:
                 raise AgendaError("an event needs an activity")
             if activity not in ACTIVITIES:
@@ -391,14 +391,14 @@ class Agenda:
             raise AgendaError(f"unknown user {user_id!r}")
         row = ItemRow(
             user_id=user_id,
-            kind=str(spec.kind),
+            kind=spec.kind,
             activity=activity,
             text=text,
             schedule=str(kind),
             spec=text_spec,
             anchor=anchor,
             tz=spec.tz,
-            priority=str(spec.priority),
+            priority=spec.priority,
             lead_s=spec.lead_s,
             grace_s=spec.grace_s,
             created_at=now.astimezone(UTC),
