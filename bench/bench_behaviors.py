@@ -23,10 +23,10 @@ import py_trees
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from activities.context import ActivityContext  # noqa: E402
-from activities.engine import Node, Runtime, StateMachine, Status  # noqa: E402
-from dms.expression import ExpressionArbiter  # noqa: E402
-from sim.robot import SimRobot  # noqa: E402
+from activities.context import ActivityContext
+from activities.engine import Node, Runtime, StateMachine, Status
+from dms.expression import ExpressionArbiter
+from sim.robot import SimRobot
 
 TICKS = 200_000
 HOLD = 1
@@ -78,7 +78,7 @@ def ours(hold: int) -> tuple[float, int]:
     return elapsed, counter[0]
 
 
-class PyBlink(py_trees.behaviour.Behaviour):  # type: ignore[misc]
+class PyBlink(py_trees.behaviour.Behaviour):
     def __init__(self, name: str, hold: int, counter: list[int]) -> None:
         super().__init__(name)
         self.hold = hold
