@@ -255,7 +255,10 @@ class _Checker:
             for operand in _children(expr):
                 found = self.kind(operand, report)
                 if found not in (None, Kind.BOOLEAN):
-                    say(operand.pos, f"'{word}' needs true or false, got {_kind_text(found)}")
+                    say(
+                        operand.pos,
+                        f"type error: '{word}' needs true or false, got {_kind_text(found)}",
+                    )
             return Kind.BOOLEAN
         if isinstance(expr, n.Compare):
             left, right = self.kind(expr.left, report), self.kind(expr.right, report)
@@ -283,11 +286,8 @@ class _Checker:
             say(expr.element.pos, f"type error: '{word}' needs a value on its left, got a set")
         elements = self.set_elements(expr.collection)
         if element is not None and element is not Kind.SET and elements and element not in elements:
-            kinds = " or ".join(sorted(_kind_text(kind) for kind in elements))
-            say(
-                expr.pos,
-                f"type error: {_kind_text(element)} is never in a set of {kinds} values",
-            )
+            kinds = " and ".join(sorted(f"{kind.value}s" for kind in elements))
+            say(expr.pos, f"type error: a {element.value} is never in a set of {kinds}")
         return Kind.BOOLEAN
 
     def check_types(self) -> None:
@@ -405,9 +405,8 @@ def verify(
         checker.collect()
         checker.check_names()
         checker.check_cycles()
-        resolved = not checker.problems  # flow analysis runs the constant parts
         checker.check_types()
-        if resolved:
+        if not checker.problems:  # flow analysis runs the constant parts: sound code only
             checker.flow()
     except RecursionError:
         first = next((p for p in checker.programs if p.items), None)
