@@ -65,9 +65,9 @@ class McapRecorder:
         self,
         out: Path | IO[bytes],
         robot_id: str,
-        on_written: Callable[[str], None] | None = None,
+        on_written: Callable[[str, bytes], None] | None = None,
     ) -> None:
-        """``on_written(key)`` is called after each message is recorded (tests wait on it)."""
+        """``on_written(key, payload)`` is called after each message is recorded."""
         self.robot_id = robot_id
         self._on_written = on_written
         self._file: IO[bytes] | None = None
@@ -137,7 +137,7 @@ class McapRecorder:
             self.stats.messages += 1
             self.stats.by_key[key] = self.stats.by_key.get(key, 0) + 1
         if self._on_written is not None:
-            self._on_written(key)
+            self._on_written(key, payload)
         return True
 
     def close(self) -> None:

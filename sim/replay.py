@@ -2,14 +2,16 @@
 
 The recorded inputs (perception, params, requests) enter a fresh stack (simulated
 robot, temporary store) at their recorded times on a virtual clock. The controller
-ticks when the recorded daemon ticked (the times of its ``dms/state`` messages, urgent
-ticks included), or at 2 Hz when the recording holds no state. The decisions it
+ticks when the recorded daemon ticked (the times of its ``dms/state`` and
+``dms/decision`` messages, urgent ticks included), or at 2 Hz when the recording holds
+none. The decisions it
 takes are compared, in order, with the recorded ``dms/decision`` messages; each
 stretch where they differ is reported with its time.
 """
 
 from __future__ import annotations
 
+import bisect
 import difflib
 import time
 from dataclasses import dataclass, field
@@ -154,9 +156,14 @@ def replay(path: Path, seed: int = 0, settings: Settings | None = None) -> Repla
                 rejected += 1  # the daemon rejected it too: it changed nothing
         elif message.key == keys.DMS_DECISION:
             try:
-                recorded.append(Decision.model_validate(message.payload))
+                decision = Decision.model_validate(message.payload)
             except ValidationError:
                 notes.append(f"an unreadable decision at {at.isoformat()} was skipped")
+                continue
+            recorded.append(decision)
+            when = _parse_time(decision.time)
+            if when is not None:
+                tick_times.append(when)  # its tick, even if that tick's state was not recorded
         elif message.key == keys.DMS_STATE and isinstance(message.payload, dict):
             when = _parse_time(str(message.payload.get("time", "")))
             if when is not None:
@@ -178,10 +185,10 @@ def replay(path: Path, seed: int = 0, settings: Settings | None = None) -> Repla
         def offset(t: datetime) -> float:
             return max(0.0, (t - start).total_seconds())
 
+        ticks = sorted(set(tick_times))
         for at, key, parsed in inputs:
-            sim.at(offset(at), lambda k=key, m=parsed: sim.feed(k, m))  # type: ignore[misc]
-        if tick_times:
-            ticks = sorted(set(tick_times))
+            sim.at(offset(_feed_time(key, at, ticks)), lambda k=key, m=parsed: sim.feed(k, m))  # type: ignore[misc]
+        if ticks:
 
             def recorded_tick() -> None:
                 sim.tick(False)
@@ -208,6 +215,31 @@ def replay(path: Path, seed: int = 0, settings: Settings | None = None) -> Repla
         span_s=(end - start).total_seconds(),
         notes=notes,
     )
+
+
+URGENT_BEFORE = timedelta(milliseconds=20)
+URGENT_AFTER = timedelta(milliseconds=10)
+"""Clock slack between the daemon and the recorder for urgent inputs.
+
+Both receive the same sample; the daemon ticks at once on an urgent input (touch,
+speech, screen, request). That tick normally starts just after the recorder logs the
+input (within ``URGENT_BEFORE``) and the input is fed just before it; but it can also
+start a little before the recorder logs it: then, if no tick follows closely, the
+input is fed before the last tick within ``URGENT_AFTER``. Other inputs wait for the
+next tick after them, as in the daemon.
+"""
+
+
+def _feed_time(key: str, at: datetime, ticks: list[datetime]) -> datetime:
+    """When to feed an input logged at ``at``, given the recorded tick times."""
+    if key not in keys.URGENT_INPUTS:
+        return at
+    after = bisect.bisect_left(ticks, at)
+    if after < len(ticks) and ticks[after] - at <= URGENT_BEFORE:
+        return at
+    if after > 0 and at - ticks[after - 1] <= URGENT_AFTER:
+        return ticks[after - 1]
+    return at
 
 
 def _skip_running_at_start(

@@ -6,6 +6,7 @@ every wait is for a message, with a deadline.
 
 from __future__ import annotations
 
+import json
 import threading
 import time
 from pathlib import Path
@@ -23,12 +24,24 @@ pytestmark = pytest.mark.integration
 
 def test_record_then_replay_round_trip(tmp_path: Path) -> None:
     out = tmp_path / "session.mcap"
-    with running_daemon(tmp_path) as (daemon, session):
+    # The user takes the initiative for sure: a random draw made before the recording
+    # began could otherwise turn out differently in the replay.
+    with running_daemon(tmp_path, "user_initiative = { unknown = 1.0 }\n") as (daemon, session):
         seen_state = threading.Event()
+        seen_left = threading.Event()
+
+        left_tick: list[int] = []
+
+        def on_written(key: str, payload: bytes) -> None:
+            if key == "dms/state":
+                seen_state.set()
+                if left_tick and json.loads(payload)["tick"] == left_tick[0]:
+                    seen_left.set()  # every decision of that tick is recorded
+            if key == "dms/decision" and b"user_left" in payload:
+                left_tick.append(json.loads(payload)["tick"])
+
         client = ZenohClient("mini", make_config(connect=[f"tcp/127.0.0.1:{daemon.port}"]))
-        recorder = McapRecorder(
-            out, "mini", on_written=lambda key: seen_state.set() if key == "dms/state" else None
-        )
+        recorder = McapRecorder(out, "mini", on_written=on_written)
         stop = threading.Event()
         stats_box: list[object] = []
         thread = threading.Thread(
@@ -41,10 +54,12 @@ def test_record_then_replay_round_trip(tmp_path: Path) -> None:
             assert seen_state.wait(10.0), "the recorder never saw the daemon's state"
             decisions = Collector(session, "robots/mini/dms/decision")
             put(session, "perception/user", {"present": True, "user_id": "alice", "ready": True})
+            decisions.wait_for(lambda d: d["reason"] == "user_arrived")
             put(session, "request", {"action": "start", "activity": "jokes", "by": "test"})
             decisions.wait_for(lambda d: d["action"] == "start" and d["activity"] == "jokes")
             put(session, "perception/user", {"present": False, "user_id": None, "ready": False})
             decisions.wait_for(lambda d: d["reason"] == "user_left")
+            assert seen_left.wait(10.0), "the recorder never got the last tick"
         finally:
             stop.set()
             thread.join(10.0)
