@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -9,6 +10,8 @@ from enum import Enum
 from typing import Any
 
 from activities.engine import Event, Node, Runtime, Status
+
+log = logging.getLogger(__name__)
 
 
 class ActivityStatus(Enum):
@@ -80,7 +83,11 @@ class Activity:
         if self.finished or self.status is ActivityStatus.PAUSED:
             return self.status
         self.ticks += 1
-        status = self.root.tick(now)
+        try:
+            status = self.root.tick(now)
+        except Exception as error:  # a broken block fails its activity, never the daemon
+            self._contain(now, error)
+            return self.status
         if status is Status.DONE:
             self._end(ActivityStatus.COMPLETED, self.root.outcome or "", None)
         elif status is Status.FAILED:
@@ -129,6 +136,14 @@ class Activity:
             "active_path": self.state_path,
             "root": self.root.describe(),
         }
+
+    def _contain(self, now: datetime, error: Exception) -> None:
+        where = self.state_path or self.name
+        try:
+            self.root.stop(now)
+        except Exception as second:  # stopping what broke may break again: report the first
+            log.warning("activity %s: stop after an error raised %r", self.name, second)
+        self._end(ActivityStatus.FAILED, "failed", f"{where}: {type(error).__name__}: {error}")
 
     def _end(self, status: ActivityStatus, outcome: str, error: str | None) -> None:
         self.status = status

@@ -457,3 +457,25 @@ def test_screen_choice_answers_a_question(bench: Bench) -> None:
     assert activity.userdata["score"] == 0
     assert activity.userdata["answer"] == wrong
     assert "right answer was" in bench.last_said()
+
+
+def test_a_block_that_breaks_fails_its_activity_with_the_reason(make: Any) -> None:
+    bench: Bench = make(
+        {
+            "broken": """
+            name: broken
+            outcomes: [done]
+            userdata: {a: 1}
+            states:
+              WRITE:
+                set_data: {values: {b: 2}}
+                input_keys: [a]
+                output_keys: [a]
+            """
+        }
+    )
+    activity = bench.start(bench.create("broken"))
+    assert activity.status is ActivityStatus.FAILED
+    assert activity.result.error is not None
+    assert activity.result.error.startswith("WRITE: KeyError")
+    assert "b is not an output key" in activity.result.error
