@@ -15,15 +15,47 @@ if TYPE_CHECKING:
     from dms.assembly import Stack
     from sim.scenario import AgendaSpec
 
+REMINDER_GRACE_S = 2 * 3600
+"""A long-term run's daily reminder waits this long for its user."""
+
 
 def add_agenda_item(agenda: Any, spec: AgendaSpec, when: datetime, now: datetime) -> None:
     """Add the reminder or event ``spec`` for ``spec.user``, due at ``when``."""
-    raise SimError("the agenda cannot be scripted yet")
+    from agenda import AgendaError, ItemSpec
+
+    data: dict[str, Any] = {
+        "user_id": spec.user,
+        "kind": spec.kind,
+        "at": when,
+        "priority": spec.priority,
+    }
+    if spec.kind == "reminder":
+        data["text"] = spec.text or "This is a reminder."
+    else:
+        data["activity"] = spec.activity
+        if spec.text is not None:
+            raise SimError("an event runs an activity and has no text")
+    try:
+        agenda.add(ItemSpec.from_data(data), now)
+    except AgendaError as error:
+        raise SimError(str(error)) from None
 
 
 def daily_reminder(agenda: Any, user_id: str, hour: int, minute: int, now: datetime) -> None:
     """A reminder for ``user_id`` every day at ``hour:minute`` UTC (long-term runs)."""
-    raise SimError("the agenda cannot be scripted yet")
+    from agenda import AgendaError, ItemSpec
+
+    spec = {
+        "user_id": user_id,
+        "kind": "reminder",
+        "text": "It is time for your medicine.",
+        "cron": f"{minute} {hour} * * *",
+        "grace_s": REMINDER_GRACE_S,
+    }
+    try:
+        agenda.add(ItemSpec.from_data(spec), now)
+    except AgendaError as error:
+        raise SimError(f"daily reminder for {user_id}: {error}") from None
 
 
 def seed_profile(stack: Stack, user_id: str, fields: dict[str, Any], now: datetime) -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import random
 import time
 from dataclasses import dataclass, field
-from datetime import timedelta
+from datetime import datetime, timedelta
 from pathlib import Path
 from typing import Any
 
@@ -15,6 +15,7 @@ from dms.messages import (
     DmsState,
     ProfileParams,
     Request,
+    RobotCommand,
     ScreenChoice,
     Speech,
     Touch,
@@ -204,8 +205,11 @@ def check(
     decisions: list[TimedDecision],
     states: dict[float, DmsState],
     duration: float,
+    said: list[tuple[float, str]] | None = None,
 ) -> tuple[bool, str]:
     """Whether one expectation holds, and a sentence saying what was seen."""
+    if expectation.resay is not None:
+        return _check_resay(expectation, said or [], duration)
     if expectation.state is not None:
         assert expectation.at is not None
         match = expectation.state
@@ -244,6 +248,23 @@ def check(
         return True, f"found {_fmt(found[0])}"
     seen = "; ".join(_fmt(d) for d in in_window[:8]) or "no decision"
     return False, f"not found; in the window: {seen}"
+
+
+def _check_resay(
+    expectation: Expectation, said: list[tuple[float, str]], duration: float
+) -> tuple[bool, str]:
+    assert expectation.resay is not None
+    before = expectation.resay.before
+    asked = [text for t, text in said if t < before and "?" in text]
+    if not asked:
+        return False, f"no question was asked before {before:g} s"
+    question = asked[-1]
+    start, end = _window(expectation, duration)
+    again = [t for t, text in said if start <= t <= end and text.endswith(question)]
+    if again:
+        return True, f"{question!r} asked again at {again[0]:g} s"
+    heard = "; ".join(repr(text) for t, text in said if start <= t <= end)[:300]
+    return False, f"{question!r} not asked again; said in the window: {heard or 'nothing'}"
 
 
 def _state_at(states: dict[float, DmsState], t: float, dotted: str) -> Any:
@@ -285,7 +306,15 @@ def run_scenario(path_or_name: str | Path) -> ScenarioResult:
         def keep_state(record: Any) -> None:
             states[sim.t] = record.state
 
-        sim.tick_listeners.append(keep_state) if state_times else None
+        if state_times:
+            sim.tick_listeners.append(keep_state)
+        said: list[tuple[float, str]] = []
+
+        def keep_speech(command: RobotCommand, _now: datetime) -> None:
+            if command.channel == "speech" and command.action == "say":
+                said.append((sim.t, str(command.args.get("text", ""))))
+
+        sim.command_listeners.append(keep_speech)
         for index, step in enumerate(scenario.timeline):
             player.schedule(index, step)
         sim.run_until(scenario.duration_s)
@@ -294,7 +323,7 @@ def run_scenario(path_or_name: str | Path) -> ScenarioResult:
         errors = list(sim.errors)
     results = []
     for index, expectation in enumerate(scenario.expect):
-        ok, detail = check(expectation, decisions, states, scenario.duration_s)
+        ok, detail = check(expectation, decisions, states, scenario.duration_s, said)
         results.append(
             ExpectationResult(
                 index, loaded.expectation_line(index), expectation.describe(), ok, detail

@@ -243,12 +243,20 @@ class StateMatch(_Spec):
         return f"state {self.field} is null"
 
 
+class ResayMatch(_Spec):
+    """The last question the robot asked before ``before`` is asked again in the window."""
+
+    before: Seconds
+
+
 class Expectation(_Spec):
-    """One of: ``decision`` (happens in ``within``), ``never`` (does not), ``state`` at ``at``."""
+    """One of: ``decision`` (happens in ``within``), ``never`` (does not), ``state`` at
+    ``at``, ``resay`` (a question asked again in ``within``)."""
 
     decision: DecisionMatch | None = None
     never: DecisionMatch | None = None
     state: StateMatch | None = None
+    resay: ResayMatch | None = None
     within: tuple[Seconds, Seconds] | None = None
     at: Seconds | None = None
     count: Annotated[int, Field(ge=0)] | None = None
@@ -257,9 +265,9 @@ class Expectation(_Spec):
 
     @model_validator(mode="after")
     def _one_kind(self) -> Expectation:
-        kinds = [k for k in ("decision", "never", "state") if getattr(self, k) is not None]
+        kinds = [k for k in ("decision", "never", "state", "resay") if getattr(self, k) is not None]
         if len(kinds) != 1:
-            raise ValueError("an expectation is exactly one of decision, never, state")
+            raise ValueError("an expectation is exactly one of decision, never, state, resay")
         if self.state is not None and self.at is None:
             raise ValueError("a state expectation needs 'at' (seconds)")
         if self.within is not None and self.within[1] < self.within[0]:
@@ -267,8 +275,11 @@ class Expectation(_Spec):
         return self
 
     def describe(self) -> str:
+        window = f" within {self.within[0]:g}-{self.within[1]:g} s" if self.within else ""
         if self.state is not None:
             text = f"{self.state.describe()} at {self.at:g} s"
+        elif self.resay is not None:
+            text = f"the question asked before {self.resay.before:g} s is asked again{window}"
         else:
             match = self.decision or self.never
             assert match is not None
