@@ -75,6 +75,11 @@ def parse_params(params_json: str | None, assignments: list[str]) -> dict[str, d
     return params
 
 
+def stderr_is_terminal() -> bool:
+    """Whether caret excerpts go to stderr (a person is watching)."""
+    return sys.stderr.isatty()
+
+
 @app.command()
 def check(
     files: Annotated[list[Path], typer.Argument(help="Rules files, checked together.")],
@@ -85,7 +90,7 @@ def check(
     """Verify rules files: exit 0 when valid, else 1 with FILE:LINE:COL: message lines."""
     loaded = ParameterSchema.load(schema) if schema is not None else None
     problems = check_files(files, loaded)
-    show_excerpts = sys.stderr.isatty()
+    show_excerpts = stderr_is_terminal()
     for problem in problems:
         typer.echo(str(problem))
         if show_excerpts:
