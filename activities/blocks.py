@@ -57,6 +57,16 @@ class Block(Node):
         """The outcomes of a state of this block with ``params`` (most blocks: fixed)."""
         return cls.OUTCOMES
 
+    def describe(self) -> dict[str, Any]:
+        out = super().describe()
+        out["kind"] = self.block_name
+        out["params"] = self.params
+        return out
+
+    @property
+    def block_name(self) -> str:
+        return next((name for name, cls in BLOCKS.items() if cls is type(self)), "block")
+
     # ------------------------------------------------------------ helpers
 
     def bind_params(self) -> None:

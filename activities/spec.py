@@ -506,6 +506,7 @@ def check_references(specs: Mapping[str, BehaviorSpec]) -> list[str]:
         for target in sorted(spec.references()):
             if target not in specs:
                 problems.append(f"{where(spec, target)} behavior {target!r} does not exist")
+        problems.extend(_check_reference_outcomes(spec, specs))
     state: dict[str, int] = {}
 
     def visit(name: str, stack: list[str]) -> None:
@@ -524,6 +525,32 @@ def check_references(specs: Mapping[str, BehaviorSpec]) -> list[str]:
     for name in sorted(specs):
         if name not in state:
             visit(name, [name])
+    return problems
+
+
+def _check_reference_outcomes(spec: BehaviorSpec, specs: Mapping[str, BehaviorSpec]) -> list[str]:
+    """A behavior used as a state: its transitions must name outcomes it has."""
+    problems: list[str] = []
+
+    def walk(state: StateSpec, path: str) -> None:
+        outcomes = (
+            set(state.params.get("outcomes") or []) if state.block == "state_machine" else set()
+        )
+        for name, child in state.states.items():
+            child_path = f"{path}/{name}" if path else name
+            target = specs.get(str(child.params.get("name"))) if child.block == "behavior" else None
+            if target is not None:
+                at = f"{spec.path or spec.name}:{child.line}: state {child_path}:"
+                own = set(target.outcomes)
+                for outcome in child.transitions:
+                    if outcome not in own and outcome != PREEMPTED:
+                        problems.append(f"{at} behavior {target.name} has no outcome {outcome!r}")
+                if state.block == "state_machine":
+                    for outcome in sorted(own - set(child.transitions) - outcomes):
+                        problems.append(f"{at} outcome {outcome!r} leads nowhere")
+            walk(child, child_path)
+
+    walk(spec.root, "")
     return problems
 
 

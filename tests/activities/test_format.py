@@ -196,3 +196,21 @@ def test_every_activity_is_named_by_its_own_name() -> None:
     for name in ACTIVITIES:
         assert match_activity(name) == name
         assert match_activity(name.replace("_", " ")) == name
+
+
+def test_transitions_of_a_behavior_reference_are_checked(tmp_path: Path) -> None:
+    (tmp_path / "inner.yaml").write_text(
+        "name: inner\noutcomes: [won, lost]\nstates:\n  S:\n    speak: {text: hi}\n"
+        "    transitions: {done: won}\n"
+    )
+    (tmp_path / "outer.yaml").write_text(
+        "name: outer\noutcomes: [done]\nstates:\n  USE:\n    behavior: {name: inner}\n"
+        "    transitions: {won: done, draw: done}\n"
+    )
+    with pytest.raises(BehaviorError) as caught:
+        BehaviorLibrary.load(tmp_path)
+    problems = caught.value.problems
+    assert (
+        f"{tmp_path / 'outer.yaml'}:4: state USE: behavior inner has no outcome 'draw'" in problems
+    )
+    assert f"{tmp_path / 'outer.yaml'}:4: state USE: outcome 'lost' leads nowhere" in problems
