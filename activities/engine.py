@@ -122,6 +122,11 @@ def _load_content(dirs: tuple[Path, ...], name: str) -> Any:
     raise BehaviorError(f"content file {name}.yaml not found")
 
 
+def clear_content_cache() -> None:
+    """Forget the content files read so far (after they were edited)."""
+    _load_content.cache_clear()
+
+
 class UserdataView(MutableMapping[str, Any]):
     """A state's window on its container's userdata (SMACH's Remapper).
 

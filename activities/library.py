@@ -18,6 +18,7 @@ from activities.blocks import BLOCKS
 from activities.context import ActivityContext
 from activities.engine import (
     Concurrence,
+    clear_content_cache,
     Guard,
     Io,
     Iterator,
@@ -108,6 +109,7 @@ class BehaviorLibrary:
         if problems:
             return problems
         self._specs = specs
+        clear_content_cache()  # content files may have changed with the behaviors
         return []
 
     def content_dirs(self) -> tuple[Path, ...]:
