@@ -18,7 +18,6 @@ from activities.blocks import BLOCKS
 from activities.context import ActivityContext
 from activities.engine import (
     Concurrence,
-    clear_content_cache,
     Guard,
     Io,
     Iterator,
@@ -26,6 +25,7 @@ from activities.engine import (
     Runtime,
     StateMachine,
     Trigger,
+    clear_content_cache,
 )
 from activities.errors import BehaviorError, UnknownBehavior
 from activities.spec import BehaviorSpec, StateSpec, check_references, parse_file
