@@ -125,7 +125,9 @@ def eval_command(
 def daemon_schema() -> ParameterSchema:
     """The parameters the daemon binds: user from the profile model, robot, env."""
     try:
-        from memory.parameters import user_parameter_types
+        from memory.parameters import (  # type: ignore[import-not-found,unused-ignore]
+            user_parameter_types,
+        )
     except ImportError as error:
         raise DmsError(f"cannot list the user parameters: {error}") from None
     return ParameterSchema.model_validate(

@@ -128,7 +128,13 @@ def test_eval_param_values_are_json_literals_else_strings() -> None:
 
 def test_param_overrides_params_and_missing_is_reported() -> None:
     result = dms_rules(
-        "eval", OBSTACLE, "ObstacleDetected", "--params", '{"user": {"age": 50}}', "--param", "user.age=85"
+        "eval",
+        OBSTACLE,
+        "ObstacleDetected",
+        "--params",
+        '{"user": {"age": 50}}',
+        "--param",
+        "user.age=85",
     )
     assert json.loads(result.stdout) == {
         "activate": ["plan"],
@@ -200,4 +206,6 @@ def test_schema_writes_the_daemon_schema_and_check_uses_it(tmp_path: Path) -> No
     typo.write_text('component C [ if params.user.agee > 3 then activate "a" ]\n', encoding="utf-8")
     result = dms_rules("check", str(typo), "--schema", str(out))
     assert result.exit_code == 1
-    assert result.stdout == f"{typo}:1:18: unknown parameter params.user.agee; did you mean 'age'?\n"
+    assert (
+        result.stdout == f"{typo}:1:18: unknown parameter params.user.agee; did you mean 'age'?\n"
+    )

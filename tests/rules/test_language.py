@@ -70,17 +70,21 @@ def test_precedence_changes_the_decision() -> None:
 # --------------------------------------------------------------- dangling else
 
 
+DANGLING = (
+    'component C [ if params.user.a then if params.user.b then activate "x" else activate "y" ]'
+)
+
+
 def test_else_belongs_to_the_nearest_if() -> None:
-    statement = parse(
-        'component C [ if params.user.a then if params.user.b then activate "x" else activate "y" ]'
-    ).components[0].body[0]
+    program = parse(DANGLING)
+    statement = program.components[0].body[0]
     assert isinstance(statement, n.If) and statement.else_ is None
     inner = statement.then
     assert isinstance(inner, n.If) and inner.else_ == n.Activate("y")
 
 
 def test_dangling_else_behaviour() -> None:
-    text = 'component C [ if params.user.a then if params.user.b then activate "x" else activate "y" ]'
+    text = DANGLING
     assert run(text, user={"a": False, "b": False}).activate == ()
     assert run(text, user={"a": True, "b": False}).activate == ("y",)
     assert run(text, user={"a": True, "b": True}).activate == ("x",)
@@ -155,9 +159,9 @@ def test_missing_is_sorted_and_unique() -> None:
 
 
 def test_none_counts_as_missing() -> None:
-    assert run('component C [ if params.env.x = 1 then activate "a" ]', env={"x": None}).missing == (
-        "env.x",
-    )
+    assert run(
+        'component C [ if params.env.x = 1 then activate "a" ]', env={"x": None}
+    ).missing == ("env.x",)
 
 
 def test_short_circuit_does_not_look_up_the_right_side() -> None:
@@ -169,12 +173,15 @@ def test_short_circuit_does_not_look_up_the_right_side() -> None:
 
 
 def test_ints_and_floats_compare_as_numbers() -> None:
-    text = 'component C [ if params.user.x = 2 then activate "eq" if params.user.x >= 1.5 then activate "ge" ]'
+    text = (
+        'component C [ if params.user.x = 2 then activate "eq" '
+        'if params.user.x >= 1.5 then activate "ge" ]'
+    )
     assert run(text, user={"x": 2.0}).activate == ("eq", "ge")
     assert run(text, user={"x": 1}).activate == ()
-    assert run('component C [ if params.user.x < -0.5 then activate "neg" ]', user={"x": -1}).activate == (
-        "neg",
-    )
+    assert run(
+        'component C [ if params.user.x < -0.5 then activate "neg" ]', user={"x": -1}
+    ).activate == ("neg",)
 
 
 def test_a_boolean_is_not_a_number() -> None:
@@ -208,8 +215,10 @@ def test_evaluate_may_refer_to_a_component_of_another_file(tmp_path: Any) -> Non
 
     a = tmp_path / "a.dmsl"
     b = tmp_path / "b.dmsl"
-    a.write_text('component A [ evaluate B ]\n', encoding="utf-8")
-    b.write_text('def yes true\ncomponent B [ if params.user.x then activate "b" ]\n', encoding="utf-8")
+    a.write_text("component A [ evaluate B ]\n", encoding="utf-8")
+    b.write_text(
+        'def yes true\ncomponent B [ if params.user.x then activate "b" ]\n', encoding="utf-8"
+    )
     assert load_rules([a, b]).evaluate("A", {"user": {"x": True}}).activate == ("b",)
 
 
@@ -284,6 +293,7 @@ def test_undefined_component_raises_key_error() -> None:
 
 def test_params_that_are_not_mappings_are_empty() -> None:
     result = rules_from_text('component C [ if params.user.a then activate "a" ]').evaluate(
-        "C", {"user": "oops"}  # type: ignore[dict-item]
+        "C",
+        {"user": "oops"},  # type: ignore[dict-item]
     )
     assert result == RuleResult((), (), ("user.a",))

@@ -88,7 +88,11 @@ def test_obstacle_rule_decides_plan_or_help(
 
 def test_the_paper_text_parses_as_written() -> None:
     program = parse(OBSTACLE.read_text(encoding="utf-8"), str(OBSTACLE))
-    assert [d.name for d in program.definitions] == ["neutralToBond", "willingToBond", "userFreeTimes"]
+    assert [d.name for d in program.definitions] == [
+        "neutralToBond",
+        "willingToBond",
+        "userFreeTimes",
+    ]
     assert [c.name for c in program.components] == ["ObstacleDetected"]
     assert check_files([OBSTACLE]) == []
 

@@ -30,8 +30,9 @@ def problems(write: Write, text: str, schema: ParameterSchema | None = None) -> 
     ("text", "expected"),
     [
         (
-            'component C [\n  if params.user.a then\n]',
-            "F:3:1: syntax error: unexpected ']'; expected '[', 'activate', 'cancel', 'evaluate', 'if'",
+            "component C [\n  if params.user.a then\n]",
+            "F:3:1: syntax error: unexpected ']'; "
+            "expected '[', 'activate', 'cancel', 'evaluate', 'if'",
         ),
         ("def x 1 +", "F:1:9: syntax error: unexpected character '+'"),
         ("def x", "F:1:6: syntax error: unexpected end of file; expected "),
@@ -107,7 +108,10 @@ def test_definition_cycles(write: Write) -> None:
         ('params.user.x not in "abc"', "F:1:39: type error: 'not in' needs a set on its right"),
         ("{1} in {2}", "F:1:18: type error: 'in' needs a value on its left, got a set"),
         ('"a" in {1, 2}', "F:1:18: type error: a string is never in a set of numbers"),
-        ('params.user.x = 1 and "yes"', "F:1:40: type error: 'and' needs true or false, got a string"),
+        (
+            'params.user.x = 1 and "yes"',
+            "F:1:40: type error: 'and' needs true or false, got a string",
+        ),
         ("not 3", "F:1:22: type error: 'not' needs true or false, got a number"),
         ('1 = "1"', "F:1:18: type error: '=' compares a number with a string"),
         ("true != 0", "F:1:18: type error: '!=' compares true or false with a number"),
@@ -225,7 +229,10 @@ def test_unreadable_and_non_utf8_files_are_problems(tmp_path: Path) -> None:
     binary = tmp_path / "binary.dmsl"
     binary.write_bytes(b"\xff\xfe component")
     found = check_files([missing, binary])
-    assert [(p.file, p.line, p.column) for p in found] == [(str(missing), 1, 1), (str(binary), 1, 1)]
+    assert [(p.file, p.line, p.column) for p in found] == [
+        (str(missing), 1, 1),
+        (str(binary), 1, 1),
+    ]
     assert "cannot read" in found[0].message
     assert "not UTF-8" in found[1].message
 
@@ -243,7 +250,10 @@ def test_problem_text_and_caret_excerpt(write: Write) -> None:
     (problem,) = check_files([path])
     assert isinstance(problem, Problem)
     assert str(problem) == f"{path}:2:23: type error: '>' needs numbers, got a string"
-    assert problem.excerpt() == '\tif params.user.age > "old" then activate "a"\n\t                     ^'
+    assert (
+        problem.excerpt()
+        == '\tif params.user.age > "old" then activate "a"\n\t                     ^'
+    )
     # without the source line kept, the excerpt reads the file
     bare = Problem(problem.file, problem.line, problem.column, problem.message)
     assert bare == problem
