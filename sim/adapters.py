@@ -58,6 +58,20 @@ def daily_reminder(agenda: Any, user_id: str, hour: int, minute: int, now: datet
         raise SimError(f"daily reminder for {user_id}: {error}") from None
 
 
+def ensure_user(stack: Stack, user_id: str, now: datetime) -> None:
+    """Create ``user_id``'s profile if it does not exist (the agenda only takes known users)."""
+    if stack.store is not None:
+        stack.store.get_or_create(user_id, now)
+
+
 def seed_profile(stack: Stack, user_id: str, fields: dict[str, Any], now: datetime) -> None:
     """Store ``fields`` in ``user_id``'s profile (created if new) before a run."""
-    raise SimError("profiles cannot be seeded yet")
+    from memory import ProfileError
+
+    if stack.store is None:
+        raise SimError("profiles: this scenario runs without memory")
+    try:
+        stack.store.get_or_create(user_id, now)
+        stack.store.update(user_id, now, **fields)
+    except (ProfileError, TypeError, ValueError) as error:
+        raise SimError(f"profiles.{user_id}: {error}") from None

@@ -186,7 +186,7 @@ def run_longterm(
     idle_step_s: float = IDLE_STEP_S,
 ) -> LongtermResult:
     """Simulate ``days`` of robot life with ``users`` visitors; plots go to ``out``."""
-    from sim.adapters import daily_reminder
+    from sim.adapters import daily_reminder, ensure_user
     from sim.harness import Simulation
 
     wall = time.perf_counter()
@@ -208,6 +208,7 @@ def run_longterm(
         ]
         if sim.stack.agenda is not None:
             for persona, user_id in zip(personas, ids, strict=True):
+                ensure_user(sim.stack, user_id, START)
                 if persona.visits:
                     first = persona.visits[0].at
                     minute = first.hour * 60 + first.minute + 10

@@ -12,6 +12,7 @@ import threading
 from pathlib import Path
 
 import pytest
+import zenoh
 
 from dms.bus import ZenohClient, make_config
 from dms.clock import RealClock
@@ -47,9 +48,19 @@ def test_demo_visitor_makes_a_session_within_ten_seconds(tmp_path: Path) -> None
             assert first["activity"] is not None
             # The visitor answers what the robot asks, by voice or on the screen.
             perception.wait_for(lambda m: "text" in m or "choice" in m, timeout=15.0)
+            gone = threading.Event()
+
+            def on_token(sample: zenoh.Sample) -> None:
+                if sample.kind == zenoh.SampleKind.DELETE:
+                    gone.set()
+
+            watcher = session.liveliness().declare_subscriber(
+                "robots/mini/alive/perception/user", on_token
+            )
         finally:
             stop()
-        wait_token(session, "robots/mini/alive/perception/user", present=False, timeout=10.0)
+        assert gone.wait(10.0), "the visitor's perception token stayed after stop()"
+        watcher.undeclare()
         assert daemon.terminate() == 0
 
 
