@@ -7,7 +7,7 @@ daily reminder in the agenda ten minutes after the time of their first visit; it
 waits up to two hours for them to be there.
 
 While someone is in front of the robot, or a dialog is open, the controller ticks at
-2 Hz as in the daemon. While nobody is there it ticks every ``idle_step_s`` (60 s)
+2 Hz as in the daemon. While nobody is there it ticks every ``idle_step_s`` (5 min)
 instead, and at once at an arrival: the motivation model integrates any step exactly
 (it is a closed form between inputs), the idle behaviors (sleep, wait, calling for
 attention) only react to the motivation, and the agenda fires only for a present
@@ -35,7 +35,7 @@ from sim.user import SimulatedUser
 if TYPE_CHECKING:
     from dms.controller import TickRecord
 
-IDLE_STEP_S = 60.0
+IDLE_STEP_S = 300.0
 SAMPLE_EVERY_S = 300.0
 START = datetime(2026, 11, 23, 0, 0, tzinfo=UTC)  # a Monday
 
