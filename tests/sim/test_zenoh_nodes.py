@@ -60,7 +60,7 @@ def test_demo_visitor_makes_a_session_within_ten_seconds(tmp_path: Path) -> None
         finally:
             stop()
         assert gone.wait(10.0), "the visitor's perception token stayed after stop()"
-        watcher.undeclare()
+        watcher.undeclare()  # type: ignore[no-untyped-call]
         assert daemon.terminate() == 0
 
 
