@@ -18,10 +18,12 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
+from typing import Any
 
-from sqlalchemy import Engine, delete, select, update
+from sqlalchemy import Connection, Engine, bindparam, delete, insert, select, update
+from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.exc import IntegrityError, SQLAlchemyError
-from sqlalchemy.orm import Session, sessionmaker
+from sqlalchemy.orm import sessionmaker
 
 from agenda import migrations
 from agenda.errors import AgendaError, AgendaNotFound
@@ -264,9 +266,8 @@ class Agenda:
             self._flush_at_us = None
             return
         try:
-            with self._sessions.begin() as session:
-                for record in self._queue:
-                    _write(session, record)
+            with self._engine.begin() as connection:
+                _write(connection, self._queue)
         except SQLAlchemyError as error:
             raise AgendaError(f"cannot write the agenda's log: {_one_line(error)}") from None
         self._queue.clear()
@@ -420,58 +421,73 @@ def _check_lead(schedule: Schedule, first: datetime, lead_s: int) -> None:
         fire = after
 
 
-def _write(session: Session, record: MissedRun | _Delivery) -> None:
-    item = record.item
-    if isinstance(record, _Delivery):
-        row = _log_row(
-            item, Outcome.DELIVERED, record.fire_us, record.fire_us, 1, record.recorded_us, ""
+def _write(connection: Connection, records: list[MissedRun | _Delivery]) -> None:
+    """Log ``records`` and move their items' cursors, in bulk (one statement each).
+
+    An occurrence already logged (by another process, or before a crash) is skipped:
+    ``(item_id, fire_time)`` is unique.
+    """
+    rows: list[dict[str, Any]] = []
+    cursors: dict[int, int | None] = {}
+    for record in records:
+        item = record.item
+        if isinstance(record, _Delivery):
+            first = last = record.fire_us
+            outcome, count, reason = Outcome.DELIVERED, 1, ""
+        else:
+            first, last, count = record.first_us, record.last_us, record.count
+            outcome = Outcome.MISSED
+            reason = record.reason if record.exact else f"{record.reason} (at least this many)"
+        rows.append(
+            {
+                "item_id": item.item_id,
+                "user_id": item.user_id,
+                "kind": str(item.kind),
+                "what": _what(item),
+                "outcome": str(outcome),
+                "fire_time": from_us(first),
+                "last_fire_time": from_us(last),
+                "count": count,
+                "recorded_at": from_us(record.recorded_us),
+                "reason": reason,
+            }
         )
-        cursor = record.cursor_us
-    else:
-        reason = record.reason if record.exact else f"{record.reason} (at least this many)"
-        row = _log_row(
-            item,
-            Outcome.MISSED,
-            record.first_us,
-            record.last_us,
-            record.count,
-            record.recorded_us,
-            reason,
-        )
-        cursor = record.cursor_us
-    try:
-        with session.begin_nested():
-            session.add(row)
-    except IntegrityError:
-        log.warning("agenda item %s at %s was already logged", item.item_id, row.fire_time)
-    session.execute(
-        update(ItemRow)
-        .where(ItemRow.id == item.item_id)
-        .values(next_fire=None if cursor is None else from_us(cursor))
+        cursors[item.item_id] = record.cursor_us
+    _insert_new(connection, rows)
+    connection.execute(
+        update(ItemRow.__table__)  # type: ignore[arg-type]
+        .where(ItemRow.__table__.c.id == bindparam("item"))
+        .values(next_fire=bindparam("cursor")),
+        [
+            {"item": item_id, "cursor": None if cursor is None else from_us(cursor)}
+            for item_id, cursor in cursors.items()
+        ],
     )
 
 
-def _log_row(
-    item: AgendaItem,
-    outcome: Outcome,
-    first_us: int,
-    last_us: int,
-    count: int,
-    recorded_us: int,
-    reason: str,
-) -> OccurrenceRow:
-    return OccurrenceRow(
-        item_id=item.item_id,
-        user_id=item.user_id,
-        kind=str(item.kind),
-        what=item.text if item.kind is ItemKind.REMINDER and item.text else item.activity or "",
-        outcome=str(outcome),
-        fire_time=from_us(first_us),
-        last_fire_time=from_us(last_us),
-        count=count,
-        recorded_at=from_us(recorded_us),
-        reason=reason,
-    )
+def _insert_new(connection: Connection, rows: list[dict[str, Any]]) -> None:
+    table = OccurrenceRow.__table__
+    dialect = connection.dialect.name
+    if dialect in ("sqlite", "postgresql"):
+        module = sqlite if dialect == "sqlite" else postgresql
+        statement = module.insert(table).on_conflict_do_nothing(
+            index_elements=["item_id", "fire_time"]
+        )
+        connection.execute(statement, rows)
+        return
+    for row in rows:
+        try:
+            with connection.begin_nested():
+                connection.execute(insert(table), row)  # type: ignore[arg-type]
+        except IntegrityError:
+            log.warning("agenda item %s at %s was already logged", row["item_id"], row["fire_time"])
+
+
+def _what(item: AgendaItem) -> str:
+    """The reminder's text or the event's activity, for the log."""
+    if item.kind is ItemKind.REMINDER and item.text:
+        return item.text
+    return item.activity or ""
 
 
 def _item(row: ItemRow) -> AgendaItem:
