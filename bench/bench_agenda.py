@@ -20,6 +20,7 @@ import tempfile
 import time
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
+from typing import Any
 
 from agenda import Agenda, ItemSpec
 
@@ -30,7 +31,7 @@ TICK = timedelta(seconds=0.5)
 def specs(user: str, rng: random.Random) -> list[ItemSpec]:
     """Ten items of one user."""
     minute = rng.randrange(60)
-    base = {"user_id": user, "tz": "Europe/Madrid"}
+    base: dict[str, Any] = {"user_id": user, "tz": "Europe/Madrid"}
     items = [
         ItemSpec(kind="reminder", text="Pills", cron=f"{minute} 9 * * *", lead_s=300, **base),
         ItemSpec(
