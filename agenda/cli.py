@@ -47,10 +47,9 @@ def _user_check(url: str) -> tuple[Callable[[str], bool] | None, Callable[[], No
 
     def exists(user_id: str) -> bool:
         try:
-            store.get(user_id)
-        except KeyError:
+            return store.get(user_id) is not None
+        except KeyError:  # ProfileNotFound
             return False
-        return True
 
     return exists, getattr(store, "close", lambda: None)
 

@@ -107,3 +107,32 @@ def test_remove_unknown_id(db: list[str]) -> None:
     code, _, error = _run("remove", "42", *db)
     assert code != 0 and isinstance(error, AgendaNotFound)
     assert str(error) == "no agenda item 42"
+
+
+class _Profiles:
+    """Stands in for memory.ProfileStore (same constructor and ``get``) in this test."""
+
+    closed = False
+
+    def __init__(self, url: str) -> None:
+        self.url = url
+
+    def get(self, user_id: str) -> dict[str, str]:
+        if user_id != "ann":
+            raise KeyError(user_id)
+        return {"id": user_id}
+
+    def close(self) -> None:
+        _Profiles.closed = True
+
+
+def test_add_checks_the_user_against_the_profile_store(
+    db: list[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import memory
+
+    monkeypatch.setattr(memory, "ProfileStore", _Profiles, raising=False)
+    code, _, error = _run("add", "--user", "zoe", "--reminder", "x", "--every", "60", *db)
+    assert code != 0 and str(error) == "unknown user 'zoe'"
+    assert _run("add", "--user", "ann", "--reminder", "x", "--every", "60", *db)[0] == 0
+    assert _Profiles.closed
