@@ -14,7 +14,7 @@ from datetime import datetime
 from enum import StrEnum
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, StrictInt, ValidationError
 
 from agenda.errors import AgendaError
 from agenda.schedule import zone
@@ -66,11 +66,11 @@ class ItemSpec(BaseModel):
     text: str | None = None
     at: datetime | None = None
     cron: str | None = None
-    every: int | None = None
+    every: StrictInt | None = None
     tz: str = "UTC"
     priority: Literal["high", "normal"] = "normal"
-    lead_s: int = 0
-    grace_s: int = 600
+    lead_s: StrictInt = 0
+    grace_s: StrictInt = 600
 
     @classmethod
     def from_data(cls, data: Mapping[str, Any]) -> ItemSpec:

@@ -90,11 +90,18 @@ class Agenda:
         """Stored items that could not be loaded (bad spec, unknown zone), one line each."""
         try:
             self._engine: Engine = make_engine(url)
+        except (SQLAlchemyError, OSError) as error:
+            raise AgendaError(f"cannot open the agenda at {url}: {_one_line(error)}") from None
+        try:
             self._prepare_schema()
             self._sessions = sessionmaker(self._engine, expire_on_commit=False)
             self._load(None)
-        except SQLAlchemyError as error:
+        except (SQLAlchemyError, OSError) as error:
+            self._engine.dispose()
             raise AgendaError(f"cannot open the agenda at {url}: {_one_line(error)}") from None
+        except AgendaError:
+            self._engine.dispose()
+            raise
 
     # ------------------------------------------------------------------ schema
 

@@ -282,6 +282,8 @@ def test_spec_from_data_turns_type_errors_into_one_line(agenda: Agenda) -> None:
         ItemSpec.from_data({"user_id": "ann", "kind": "party"})
     with pytest.raises(AgendaError, match="every"):
         ItemSpec.from_data({"user_id": "ann", "kind": "reminder", "every": "often"})
+    with pytest.raises(AgendaError, match="every"):
+        ItemSpec.from_data({"user_id": "ann", "kind": "reminder", "every": True})
     with pytest.raises(AgendaError, match="colour"):
         ItemSpec.from_data({"user_id": "ann", "kind": "reminder", "colour": "red"})
 
@@ -298,6 +300,15 @@ def test_fresh_database_is_created_at_head_and_an_old_one_is_refused(
         connection.execute("INSERT INTO alembic_version_agenda VALUES ('agenda_0000')")
     with pytest.raises(AgendaError, match="dms db upgrade"):
         Agenda(f"sqlite:///{old}")
+
+
+def test_a_database_that_cannot_be_opened_is_one_line(tmp_path: Path) -> None:
+    for url in ("not a url", "nosuch://x", f"sqlite:///{tmp_path / 'file' / 'x.db'}"):
+        if url.startswith("sqlite"):
+            (tmp_path / "file").write_text("a file where a folder should be")
+        with pytest.raises(AgendaError, match="cannot open the agenda") as error:
+            Agenda(url)
+        assert "\n" not in str(error.value)
 
 
 def test_the_agenda_shares_the_database_with_other_alembic_histories(db_url: str) -> None:
