@@ -1,0 +1,227 @@
+"""Preference prediction by label ranking, and the choice of the next activity.
+
+:class:`PreferenceModel` learns, from users' features and their rankings of the
+entertainment activities, to predict a new user's ranking: ranking by pairwise
+comparison (one logistic regression per pair of activities, which also learns from
+partial rankings; the predicted ranking sorts activities by their summed
+probabilities of winning). With no usable features the ranking is random, as in the
+paper. :class:`ActivityChooser` blends the prediction with the user's own scores
+(feedback, completions, cancellations) and samples its choice (Thompson sampling),
+which tries activities it knows little about and settles on favorites as evidence
+comes in.
+"""
+
+from __future__ import annotations
+
+import csv
+import itertools
+import random
+from collections.abc import Collection, Iterable, Mapping
+from functools import cache
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from sklearn.feature_extraction import DictVectorizer
+from sklearn.linear_model import LogisticRegression
+
+from dms.activity_names import ENTERTAINMENT_ACTIVITIES
+from memory.errors import ProfileError
+from memory.profile import Profile
+from memory.seed_data import FEATURE_COLUMNS, SEED_CSV
+
+if TYPE_CHECKING:
+    from memory.store import ProfileStore
+
+ACTIVITIES: tuple[str, ...] = ENTERTAINMENT_ACTIVITIES
+PAIRS: tuple[tuple[int, int], ...] = tuple(itertools.combinations(range(len(ACTIVITIES)), 2))
+
+Features = Mapping[str, Any]
+Liking = Mapping[str, float]
+"""A (possibly partial) preference: higher is better liked."""
+
+
+def encode(features: Features) -> dict[str, float | str]:
+    """Features as DictVectorizer input: age scaled, booleans 0/1, text lower case."""
+    out: dict[str, float | str] = {}
+    for name, value in features.items():
+        if value is None or name in ("name", "user_id", "id"):
+            continue
+        if isinstance(value, bool):
+            out[name] = 1.0 if value else 0.0
+        elif isinstance(value, int | float):
+            out[name] = float(value) / 100.0 if name == "age" else float(value)
+        elif isinstance(value, str) and value.strip():
+            out[name] = value.strip().lower()
+    return out
+
+
+def ranking_to_liking(ranking: Iterable[str]) -> dict[str, float]:
+    """A full ranking as scores: first gets the highest."""
+    names = list(ranking)
+    return {name: float(len(names) - index) for index, name in enumerate(names)}
+
+
+def load_seed() -> list[tuple[dict[str, Any], dict[str, float]]]:
+    """The shipped seed dataset (simulated personas), as (features, liking) rows."""
+    rows = []
+    with SEED_CSV.open(newline="", encoding="utf-8") as handle:
+        for record in csv.DictReader(handle):
+            features: dict[str, Any] = {}
+            for column in FEATURE_COLUMNS:
+                raw = record[column]
+                if column == "age":
+                    features[column] = int(raw)
+                elif column == "lives_alone":
+                    features[column] = raw == "True"
+                else:
+                    features[column] = raw
+            rows.append((features, ranking_to_liking(record["ranking"].split(">"))))
+    return rows
+
+
+class PreferenceModel:
+    """Label ranking of the entertainment activities from user features."""
+
+    def __init__(
+        self,
+        vectorizer: DictVectorizer | None,
+        pairs: Mapping[tuple[int, int], LogisticRegression | float],
+        training_size: int,
+    ) -> None:
+        self._vectorizer = vectorizer
+        self._pairs = dict(pairs)
+        self.training_size = training_size
+        self._known = set(vectorizer.feature_names_) if vectorizer is not None else set()
+
+    @classmethod
+    def fit(cls, rows: Iterable[tuple[Features, Liking]]) -> PreferenceModel:
+        """Learn from (features, liking) rows; a liking may leave activities out."""
+        data = [(encode(features), liking) for features, liking in rows]
+        data = [(features, liking) for features, liking in data if features]
+        if not data:
+            return cls(None, {}, 0)
+        vectorizer = DictVectorizer(sparse=False)
+        matrix = vectorizer.fit_transform([features for features, _ in data])
+        pairs: dict[tuple[int, int], LogisticRegression | float] = {}
+        for i, j in PAIRS:
+            a, b = ACTIVITIES[i], ACTIVITIES[j]
+            index, labels = [], []
+            for row, (_, liking) in enumerate(data):
+                if a in liking and b in liking and liking[a] != liking[b]:
+                    index.append(row)
+                    labels.append(1 if liking[a] > liking[b] else 0)
+            if len(set(labels)) < 2:
+                pairs[(i, j)] = float(labels[0]) if labels else 0.5
+                continue
+            classifier = LogisticRegression(C=1.0, max_iter=500)
+            classifier.fit(matrix[index], np.array(labels))
+            pairs[(i, j)] = classifier
+        return cls(vectorizer, pairs, len(data))
+
+    @classmethod
+    def from_seed(cls) -> PreferenceModel:
+        """The model learnt from the shipped seed personas only (cached)."""
+        return _seed_model()
+
+    @classmethod
+    def train(cls, store: ProfileStore) -> PreferenceModel:
+        """The seed personas plus every stored user with scores for two activities or more.
+
+        Reads the store each time, so an erased user is no longer learnt from.
+
+        Raises:
+            ProfileError: the store cannot be read (StoreUnavailable).
+        """
+        stored = store.training_rows()
+        if not stored:
+            return cls.from_seed()
+        return cls.fit([*load_seed(), *stored])
+
+    def usable(self, features: Features) -> bool:
+        """Whether ``features`` holds anything this model learnt from."""
+        encoded = encode(features)
+        return any(
+            name in self._known or f"{name}={value}" in self._known
+            for name, value in encoded.items()
+        )
+
+    def win_scores(self, features: Features) -> dict[str, float] | None:
+        """Each activity's mean probability of being preferred to another (0..1);
+        None when the features are empty or unknown to the model."""
+        if self._vectorizer is None or not self.usable(features):
+            return None
+        vector = self._vectorizer.transform([encode(features)])
+        wins = np.zeros(len(ACTIVITIES))
+        for (i, j), model in self._pairs.items():
+            p = (
+                float(model)
+                if isinstance(model, float)
+                else float(model.predict_proba(vector)[0, 1])
+            )
+            wins[i] += p
+            wins[j] += 1.0 - p
+        wins /= len(ACTIVITIES) - 1
+        return {name: float(wins[k]) for k, name in enumerate(ACTIVITIES)}
+
+    def predict_ranking(self, features: Features, rng: random.Random) -> list[str]:
+        """The predicted ranking, best first; random when there are no usable features."""
+        scores = self.win_scores(features)
+        names = list(ACTIVITIES)
+        rng.shuffle(names)  # random order, and random tie-breaking below
+        if scores is None:
+            return names
+        return sorted(names, key=lambda name: -scores[name])
+
+
+@cache
+def _seed_model() -> PreferenceModel:
+    return PreferenceModel.fit(load_seed())
+
+
+PRIOR_STRENGTH = 2.0
+"""How many observations the prediction is worth against the user's own evidence."""
+
+
+class ActivityChooser:
+    """Picks the next entertainment activity for a user (the autonomous choice)."""
+
+    def __init__(self, model: PreferenceModel, store: ProfileStore | None = None) -> None:
+        self.model = model
+        self.store = store
+
+    def _fresh(self, profile: Profile) -> Profile:
+        if self.store is None:
+            return profile
+        try:
+            return self.store.get(profile.user_id)
+        except ProfileError:  # the store is down or the user was erased: use what we hold
+            return profile
+
+    def beliefs(self, profile: Profile) -> dict[str, tuple[float, float]]:
+        """Per activity, Beta(alpha, beta) of how much the user likes it: the prediction
+        as a prior worth :data:`PRIOR_STRENGTH` observations plus the user's evidence."""
+        prior = self.model.win_scores(profile.features()) or dict.fromkeys(ACTIVITIES, 0.5)
+        out = {}
+        for name in ACTIVITIES:
+            score = profile.scores.get(name)
+            evidence = score.evidence if score else 0.0
+            liked = score.liking_sum if score else 0.0
+            p = min(0.95, max(0.05, prior[name]))
+            out[name] = (PRIOR_STRENGTH * p + liked, PRIOR_STRENGTH * (1 - p) + evidence - liked)
+        return out
+
+    def ranking(self, profile: Profile, rng: random.Random) -> list[str]:
+        """The blended ranking (expected liking), best first; ties at random."""
+        beliefs = self.beliefs(profile)
+        names = list(ACTIVITIES)
+        rng.shuffle(names)
+        return sorted(names, key=lambda name: -beliefs[name][0] / sum(beliefs[name]))
+
+    def choose(self, profile: Profile, rng: random.Random, exclude: Collection[str] = ()) -> str:
+        """One activity not in ``exclude``: the best of one draw from each belief, so
+        little-known activities get tried and favorites win as evidence grows."""
+        profile = self._fresh(profile)
+        beliefs = self.beliefs(profile)
+        names = [name for name in ACTIVITIES if name not in exclude] or list(ACTIVITIES)
+        draws = {name: rng.betavariate(*beliefs[name]) for name in names}
+        return max(names, key=lambda name: draws[name])

@@ -1,0 +1,520 @@
+"""The profile store: one user's profile and history in any SQLAlchemy database.
+
+Every public method opens its own short session and commits before it returns, so
+the store is safe to call from several threads and an acknowledged write survives a
+crash (SQLite: WAL with ``synchronous=FULL``). Database failures while running come
+out as :class:`StoreUnavailable` so that the daemon keeps deciding and retries.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from contextlib import contextmanager
+from datetime import datetime
+from typing import Any
+
+from sqlalchemy import delete, select
+from sqlalchemy.engine import make_url
+from sqlalchemy.exc import ArgumentError, DBAPIError, IntegrityError, SQLAlchemyError
+from sqlalchemy.orm import Session, sessionmaker
+
+from memory import migrations
+from memory.db import default_url, make_engine
+from memory.errors import ProfileError, ProfileNotFound, SchemaOutOfDate, StoreUnavailable
+from memory.models import (
+    ActivityRunRow,
+    ActivityScoreRow,
+    AnswerRow,
+    FeedbackRow,
+    SessionRow,
+    UserRow,
+)
+from memory.profile import (
+    INTERACTION_STYLES,
+    MAX_ATTRIBUTES,
+    ActivityScore,
+    Profile,
+    validate_fields,
+)
+
+FAILURES_TO_SWITCH = 3
+"""Consecutive unanswered prompts on one channel after which the style switches (Table 2)."""
+
+INITIATIVE_MIN_OBSERVATIONS = 5
+"""Chances to take the initiative needed before proactivity leaves ``unknown``."""
+
+COMPLETED_OUTCOMES = frozenset({"completed", "done", "succeeded", "success"})
+
+_UNIFORM_SD = math.sqrt(1 / 12)
+
+
+def _one_line(error: BaseException) -> str:
+    text = str(getattr(error, "orig", None) or error).strip().splitlines()
+    return text[0] if text else type(error).__name__
+
+
+def _check_time(name: str, value: Any) -> datetime:
+    if not isinstance(value, datetime) or value.tzinfo is None:
+        raise ProfileError(f"{name}: must be a tz-aware UTC datetime (got {value!r:.60})")
+    return value
+
+
+def _check_user_id(user_id: Any) -> str:
+    if not isinstance(user_id, str) or not user_id.strip() or len(user_id) > 200:
+        raise ProfileError(
+            f"user_id: must be a non-empty string of at most 200 characters (got {user_id!r:.60})"
+        )
+    return user_id
+
+
+def _check_name(field: str, value: Any, max_length: int = 50) -> str:
+    if not isinstance(value, str) or not value.strip() or len(value) > max_length:
+        raise ProfileError(
+            f"{field}: must be a non-empty string of at most {max_length} characters"
+            f" (got {value!r:.60})"
+        )
+    return value
+
+
+def snapshot(row: UserRow) -> Profile:
+    """The frozen :class:`Profile` of a loaded row."""
+    return Profile(
+        user_id=row.user_id,
+        created_at=row.created_at,
+        updated_at=row.updated_at,
+        name=row.name,
+        age=row.age,
+        sex=row.sex,
+        language=row.language,
+        hearing=row.hearing,
+        dialogue_mode=row.dialogue_mode,
+        interaction_style=row.interaction_style,
+        volume=row.volume,
+        distance=row.distance,
+        robot_initiative_frequency=row.robot_initiative_frequency,
+        proactivity=row.proactivity,
+        proactivity_confidence=row.proactivity_confidence,
+        bondlevel=row.bondlevel,
+        favorite_room=row.favorite_room,
+        attributes=dict(row.attributes or {}),
+        scores={
+            score.activity: ActivityScore(
+                feedback_sum=score.feedback_sum,
+                feedback_count=score.feedback_count,
+                completions=score.completions,
+                cancellations=score.cancellations,
+            )
+            for score in row.scores
+        },
+        voice_failures=row.voice_failures,
+        screen_failures=row.screen_failures,
+        initiative_taken=row.initiative_taken,
+        initiative_offered=row.initiative_offered,
+    )
+
+
+def estimate_proactivity(taken: int, offered: int) -> tuple[str, float]:
+    """Proactivity level and confidence from how often the user took the initiative.
+
+    The rate has a Beta(1 + taken, 1 + missed) posterior; the level is its mean cut in
+    thirds (low, moderate, high) once :data:`INITIATIVE_MIN_OBSERVATIONS` chances were
+    seen, and the confidence is one minus the posterior's standard deviation relative
+    to the uniform prior's (0 with no data, towards 1 with many).
+    """
+    a = 1.0 + taken
+    b = 1.0 + max(0, offered - taken)
+    mean = a / (a + b)
+    sd = math.sqrt(a * b / ((a + b) ** 2 * (a + b + 1)))
+    confidence = round(max(0.0, 1.0 - sd / _UNIFORM_SD), 4)
+    if offered < INITIATIVE_MIN_OBSERVATIONS:
+        return "unknown", confidence
+    level = "low" if mean < 1 / 3 else "moderate" if mean < 2 / 3 else "high"
+    return level, confidence
+
+
+class _Conflict(ProfileError):
+    """A write collided with a row another writer made (a unique key)."""
+
+
+class ProfileStore:
+    """Profiles and their history in the database at ``url``.
+
+    Raises:
+        ProfileError: the database cannot be opened (one-line message).
+        SchemaOutOfDate: the database needs ``dms db upgrade --db URL``.
+    """
+
+    def __init__(self, url: str | None = None) -> None:
+        self.url = url or default_url()
+        try:
+            shown = make_url(self.url).render_as_string(hide_password=True)
+        except ArgumentError as error:
+            raise ProfileError(f"cannot open database {self.url!r}: {error}") from None
+        try:
+            self.engine = make_engine(self.url)
+            with self.engine.connect() as connection:
+                installed = migrations.installed(connection)
+                current = migrations.current(connection) if installed else None
+        except (SQLAlchemyError, OSError, ImportError) as error:
+            raise ProfileError(f"cannot open database {shown}: {_one_line(error)}") from None
+        head = migrations.head()
+        if not installed:
+            try:
+                migrations.upgrade_engine(self.engine)
+            except SQLAlchemyError as error:
+                self.engine.dispose()
+                raise ProfileError(
+                    f"cannot create the profile tables in {shown}: {_one_line(error)}"
+                ) from None
+        elif current != head:
+            self.engine.dispose()
+            raise SchemaOutOfDate(
+                f"database {shown} has profile schema {current or 'unversioned'}, "
+                f"this dms needs {head}: run `dms db upgrade --db {shown}`"
+            )
+        self._sessions = sessionmaker(self.engine, expire_on_commit=False)
+
+    # ------------------------------------------------------------------ plumbing
+
+    @contextmanager
+    def _session(self) -> Iterator[Session]:
+        """One short transaction; database failures become StoreUnavailable."""
+        try:
+            with self._sessions.begin() as session:
+                yield session
+        except ProfileError:
+            raise
+        except IntegrityError as error:
+            raise _Conflict(f"refused by the database: {_one_line(error)}") from None
+        except (DBAPIError, SQLAlchemyError) as error:
+            raise StoreUnavailable(f"database error: {_one_line(error)}") from None
+
+    @staticmethod
+    def _user(session: Session, user_id: str) -> UserRow:
+        row = session.get(UserRow, user_id)
+        if row is None:
+            raise ProfileNotFound(f"no profile for user {user_id!r}")
+        return row
+
+    @staticmethod
+    def _score(session: Session, row: UserRow, activity: str) -> ActivityScoreRow:
+        for score in row.scores:
+            if score.activity == activity:
+                return score
+        score = ActivityScoreRow(
+            user_id=row.user_id,
+            activity=activity,
+            feedback_sum=0.0,
+            feedback_count=0,
+            completions=0,
+            cancellations=0,
+        )
+        row.scores.append(score)
+        return score
+
+    # ------------------------------------------------------------------ profiles
+
+    def get_or_create(self, user_id: str, now: datetime) -> Profile:
+        """Step 5: the user's profile, or a new empty one for a new user."""
+        _check_user_id(user_id)
+        _check_time("now", now)
+        try:
+            with self._session() as session:
+                row = session.get(UserRow, user_id)
+                if row is None:
+                    row = UserRow(
+                        user_id=user_id,
+                        created_at=now,
+                        updated_at=now,
+                        interaction_style="voice",
+                        proactivity="unknown",
+                        proactivity_confidence=0.0,
+                        attributes={},
+                        voice_failures=0,
+                        screen_failures=0,
+                        initiative_taken=0,
+                        initiative_offered=0,
+                    )
+                    session.add(row)
+                    session.flush()
+                return snapshot(row)
+        except _Conflict:
+            pass
+        # Another writer created it between our read and our insert.
+        return self.get(user_id)
+
+    def get(self, user_id: str) -> Profile:
+        """The user's profile; ProfileNotFound if there is none."""
+        with self._session() as session:
+            return snapshot(self._user(session, user_id))
+
+    def update(self, user_id: str, now: datetime, **fields: Any) -> Profile:
+        """Set profile fields or free attributes; None clears one.
+
+        Raises:
+            ProfileError: naming the field whose name or value is wrong (nothing is written).
+        """
+        _check_time("now", now)
+        columns, attributes = validate_fields(fields)
+        with self._session() as session:
+            row = self._user(session, user_id)
+            for name, value in columns.items():
+                setattr(row, name, value)
+            if attributes:
+                merged = dict(row.attributes or {})
+                for name, value in attributes.items():
+                    if value is None:
+                        merged.pop(name, None)
+                    else:
+                        merged[name] = value
+                if len(merged) > MAX_ATTRIBUTES:
+                    raise ProfileError(f"attributes: at most {MAX_ATTRIBUTES} free attributes")
+                row.attributes = merged
+            row.updated_at = now
+            return snapshot(row)
+
+    def list_ids(self) -> list[str]:
+        """Every stored user id, sorted."""
+        with self._session() as session:
+            return list(session.scalars(select(UserRow.user_id).order_by(UserRow.user_id)))
+
+    def export(self, user_id: str) -> dict[str, Any]:
+        """Everything stored about the user, history included, as JSON-able data."""
+        with self._session() as session:
+            row = self._user(session, user_id)
+            profile = snapshot(row).model_dump(mode="json")
+
+            def rows(model: Any) -> list[Any]:
+                return list(
+                    session.scalars(
+                        select(model).where(model.user_id == user_id).order_by(model.id)
+                    )
+                )
+
+            return {
+                "profile": profile,
+                "sessions": [
+                    {
+                        "id": s.id,
+                        "started": s.started_at.isoformat(),
+                        "ended": s.ended_at.isoformat() if s.ended_at else None,
+                    }
+                    for s in rows(SessionRow)
+                ],
+                "activities": [
+                    {
+                        "activity": r.activity,
+                        "session_id": r.session_id,
+                        "started": r.started_at.isoformat(),
+                        "ended": r.ended_at.isoformat(),
+                        "outcome": r.outcome,
+                        "chosen_by": r.chosen_by,
+                        "cancelled": r.cancelled,
+                    }
+                    for r in rows(ActivityRunRow)
+                ],
+                "feedback": [
+                    {"activity": f.activity, "score": f.score, "time": f.at.isoformat()}
+                    for f in rows(FeedbackRow)
+                ],
+                "answers": [
+                    {
+                        "question": a.question_id,
+                        "answer": a.answer,
+                        "applied": a.applied,
+                        "time": a.at.isoformat(),
+                    }
+                    for a in rows(AnswerRow)
+                ],
+            }
+
+    def erase(self, user_id: str) -> None:
+        """Delete everything about the user, history included (and so from training)."""
+        with self._session() as session:
+            self._user(session, user_id)
+            # Explicit deletes, children first: no reliance on the backend's cascade.
+            for model in (AnswerRow, FeedbackRow, ActivityRunRow, SessionRow, ActivityScoreRow):
+                session.execute(delete(model).where(model.user_id == user_id))
+            session.execute(delete(UserRow).where(UserRow.user_id == user_id))
+
+    # ------------------------------------------------------------------ history
+
+    def start_session(self, user_id: str, now: datetime) -> int:
+        """A new interaction session; its id for :meth:`end_session` and runs."""
+        _check_time("now", now)
+        with self._session() as session:
+            self._user(session, user_id)
+            row = SessionRow(user_id=user_id, started_at=now)
+            session.add(row)
+            session.flush()
+            return row.id
+
+    def end_session(self, session_id: int, now: datetime) -> None:
+        """Close the session (the user left)."""
+        _check_time("now", now)
+        with self._session() as session:
+            row = session.get(SessionRow, session_id)
+            if row is None:
+                raise ProfileError(f"session_id: no session {session_id!r}")
+            row.ended_at = now
+
+    def record_activity(
+        self,
+        user_id: str,
+        activity: str,
+        started: datetime,
+        ended: datetime,
+        outcome: str,
+        chosen_by: str,
+        cancelled: bool,
+        session_id: int | None = None,
+    ) -> Profile:
+        """Log one activity run; a completion or cancellation updates the user's score."""
+        _check_name("activity", activity)
+        _check_time("started", started)
+        _check_time("ended", ended)
+        _check_name("outcome", outcome)
+        _check_name("chosen_by", chosen_by, 20)
+        if not isinstance(cancelled, bool):
+            raise ProfileError(f"cancelled: must be true or false (got {cancelled!r:.60})")
+        if ended < started:
+            raise ProfileError("ended: is before started")
+        with self._session() as session:
+            row = self._user(session, user_id)
+            if session_id is not None and session.get(SessionRow, session_id) is None:
+                raise ProfileError(f"session_id: no session {session_id!r}")
+            session.add(
+                ActivityRunRow(
+                    user_id=user_id,
+                    session_id=session_id,
+                    activity=activity,
+                    started_at=started,
+                    ended_at=ended,
+                    outcome=outcome,
+                    chosen_by=chosen_by,
+                    cancelled=cancelled,
+                )
+            )
+            if cancelled or outcome in COMPLETED_OUTCOMES:
+                score = self._score(session, row, activity)
+                if cancelled:
+                    score.cancellations += 1
+                else:
+                    score.completions += 1
+            row.updated_at = max(row.updated_at, ended)
+            return snapshot(row)
+
+    def record_feedback(self, user_id: str, activity: str, score: float, now: datetime) -> Profile:
+        """Step 7: how much the user liked ``activity``, 0 (not at all) to 1 (a lot)."""
+        _check_name("activity", activity)
+        _check_time("now", now)
+        if (
+            isinstance(score, bool)
+            or not isinstance(score, int | float)
+            or not math.isfinite(score)
+            or not 0 <= score <= 1
+        ):
+            raise ProfileError(f"score: must be a number between 0 and 1 (got {score!r:.60})")
+        with self._session() as session:
+            row = self._user(session, user_id)
+            session.add(FeedbackRow(user_id=user_id, activity=activity, score=float(score), at=now))
+            entry = self._score(session, row, activity)
+            entry.feedback_sum += float(score)
+            entry.feedback_count += 1
+            row.updated_at = now
+            return snapshot(row)
+
+    def record_answer(self, user_id: str, question_id: str, answer: str, now: datetime) -> Profile:
+        """Step 8: log an answer to a general question and store the fields it fills."""
+        from memory.questions import QuestionBank
+
+        _check_name("question_id", question_id, 100)
+        _check_time("now", now)
+        if not isinstance(answer, str) or len(answer) > 2000:
+            raise ProfileError("answer: must be a string of at most 2000 characters")
+        bank = QuestionBank.default()
+        question = bank.get(question_id)
+        applied = bank.parse(question, answer) if question is not None else None
+        columns, attributes = validate_fields(applied or {})
+        with self._session() as session:
+            row = self._user(session, user_id)
+            session.add(
+                AnswerRow(
+                    user_id=user_id, question_id=question_id, answer=answer, applied=applied, at=now
+                )
+            )
+            for name, value in columns.items():
+                setattr(row, name, value)
+            if attributes:
+                row.attributes = {**(row.attributes or {}), **attributes}
+            row.updated_at = now
+            return snapshot(row)
+
+    def record_interaction(
+        self, user_id: str, channel: str, answered: bool, now: datetime
+    ) -> Profile:
+        """Table 2: count unanswered prompts per channel; after
+        :data:`FAILURES_TO_SWITCH` in a row on the current style, switch to the other."""
+        if channel not in INTERACTION_STYLES:
+            raise ProfileError(f"channel: must be voice or screen (got {channel!r:.60})")
+        if not isinstance(answered, bool):
+            raise ProfileError(f"answered: must be true or false (got {answered!r:.60})")
+        _check_time("now", now)
+        attribute = f"{channel}_failures"
+        with self._session() as session:
+            row = self._user(session, user_id)
+            if answered:
+                setattr(row, attribute, 0)
+            else:
+                failures = getattr(row, attribute) + 1
+                setattr(row, attribute, failures)
+                if failures >= FAILURES_TO_SWITCH and row.interaction_style == channel:
+                    row.interaction_style = "screen" if channel == "voice" else "voice"
+                    setattr(row, attribute, 0)
+            row.updated_at = now
+            return snapshot(row)
+
+    def record_initiative(self, user_id: str, took_initiative: bool, now: datetime) -> Profile:
+        """Count a chance to take the initiative; re-estimate proactivity and its confidence."""
+        if not isinstance(took_initiative, bool):
+            raise ProfileError(
+                f"took_initiative: must be true or false (got {took_initiative!r:.60})"
+            )
+        _check_time("now", now)
+        with self._session() as session:
+            row = self._user(session, user_id)
+            row.initiative_offered += 1
+            row.initiative_taken += int(took_initiative)
+            level, confidence = estimate_proactivity(row.initiative_taken, row.initiative_offered)
+            if level != "unknown" or row.proactivity == "unknown":
+                row.proactivity = level
+            row.proactivity_confidence = confidence
+            row.updated_at = now
+            return snapshot(row)
+
+    # ------------------------------------------------------------------ training data
+
+    def training_rows(self) -> list[tuple[dict[str, Any], dict[str, float]]]:
+        """(features, own mean liking per activity) of every stored user with evidence.
+
+        What :meth:`memory.PreferenceModel.train` learns from: an erased user is gone
+        from it at once.
+        """
+        with self._session() as session:
+            out = []
+            for row in session.scalars(select(UserRow).order_by(UserRow.user_id)):
+                profile = snapshot(row)
+                means = {
+                    name: mean
+                    for name, score in profile.scores.items()
+                    if (mean := score.mean()) is not None
+                }
+                features = profile.features()
+                if len(means) >= 2 and features:
+                    out.append((features, means))
+            return out
+
+    def close(self) -> None:
+        """Release the connections (the data is already committed)."""
+        self.engine.dispose()
