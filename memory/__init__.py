@@ -6,11 +6,39 @@ chooses an entertainment activity with :class:`ActivityChooser` at step 6, recor
 feedback at step 7 and answers to :class:`QuestionBank` questions at step 8.
 """
 
+from __future__ import annotations
+
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
+
 from memory.errors import ProfileError, ProfileNotFound, SchemaOutOfDate, StoreUnavailable
-from memory.preferences import ActivityChooser, PreferenceModel
-from memory.profile import ActivityScore, Profile
-from memory.questions import Question, QuestionBank
-from memory.store import ProfileStore
+
+if TYPE_CHECKING:
+    from memory.preferences import ActivityChooser, PreferenceModel
+    from memory.profile import ActivityScore, Profile
+    from memory.questions import Question, QuestionBank
+    from memory.store import ProfileStore
+
+# Imported on first use: the store alone (a CLI command, a writer) need not load scikit-learn.
+_LAZY = {
+    "ActivityChooser": "memory.preferences",
+    "PreferenceModel": "memory.preferences",
+    "ActivityScore": "memory.profile",
+    "Profile": "memory.profile",
+    "Question": "memory.questions",
+    "QuestionBank": "memory.questions",
+    "ProfileStore": "memory.store",
+}
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'memory' has no attribute {name!r}")
+    value = getattr(import_module(module), name)
+    globals()[name] = value
+    return value
+
 
 __all__ = [
     "ActivityChooser",

@@ -25,6 +25,12 @@ app = typer.Typer(no_args_is_help=True)
 
 db_app = typer.Typer(no_args_is_help=True)
 
+
+@db_app.callback()
+def _db() -> None:
+    """Database schema migrations (a group, even with one command)."""
+
+
 DbOption = Annotated[
     str | None, typer.Option("--db", help="SQLAlchemy database URL (default: the daemon's).")
 ]

@@ -187,7 +187,14 @@ def test_erase_removes_everything_and_only_that_user(store: ProfileStore) -> Non
     from sqlalchemy import text
 
     with store.engine.connect() as connection:
-        for table in ("users", "activity_scores", "sessions", "activity_runs", "feedback", "answers"):
+        for table in (
+            "users",
+            "activity_scores",
+            "sessions",
+            "activity_runs",
+            "feedback",
+            "answers",
+        ):
             count = connection.execute(
                 text(f"SELECT COUNT(*) FROM {table} WHERE user_id = 'ann'")
             ).scalar_one()
