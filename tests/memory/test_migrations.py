@@ -8,8 +8,7 @@ import pytest
 from sqlalchemy import text
 from typer.testing import CliRunner
 
-from memory import ProfileStore, SchemaOutOfDate
-from memory import migrations
+from memory import ProfileStore, SchemaOutOfDate, migrations
 from memory.cli import db_app
 from memory.db import make_engine
 from tests.memory.conftest import NOW
@@ -56,13 +55,15 @@ def _fill_previous_schema(url: str) -> None:
             )
             connection.execute(
                 text(
-                    "INSERT INTO feedback (user_id, activity, score, at) VALUES (:u, 'quiz', 0.75, :l)"
+                    "INSERT INTO feedback (user_id, activity, score, at)"
+                    " VALUES (:u, 'quiz', 0.75, :l)"
                 ),
                 {"u": user, "l": later},
             )
             connection.execute(
                 text(
-                    "INSERT INTO answers (user_id, question_id, answer, at) VALUES (:u, 'age', :a, :l)"
+                    "INSERT INTO answers (user_id, question_id, answer, at)"
+                    " VALUES (:u, 'age', :a, :l)"
                 ),
                 {"u": user, "a": str(age), "l": later},
             )
