@@ -82,7 +82,7 @@ class UserRow(Base):
     initiative_offered: Mapped[int] = mapped_column(Integer, default=0)
 
     scores: Mapped[list[ActivityScoreRow]] = relationship(
-        cascade="all, delete-orphan", passive_deletes=True, lazy="selectin"
+        cascade="all, delete-orphan", passive_deletes=True, lazy="joined"
     )
 
 

@@ -85,11 +85,15 @@ class PreferenceModel:
     def __init__(
         self,
         vectorizer: DictVectorizer | None,
-        pairs: Mapping[tuple[int, int], LogisticRegression | float],
+        weights: np.ndarray[Any, np.dtype[np.float64]],
+        intercepts: np.ndarray[Any, np.dtype[np.float64]],
         training_size: int,
     ) -> None:
+        """``weights[k]`` and ``intercepts[k]``: the logistic model of ``PAIRS[k]``
+        (probability that the first activity of the pair is preferred)."""
         self._vectorizer = vectorizer
-        self._pairs = dict(pairs)
+        self._weights = weights
+        self._intercepts = intercepts
         self.training_size = training_size
         self._known = set(vectorizer.feature_names_) if vectorizer is not None else set()
 
@@ -99,11 +103,12 @@ class PreferenceModel:
         data = [(encode(features), liking) for features, liking in rows]
         data = [(features, liking) for features, liking in data if features]
         if not data:
-            return cls(None, {}, 0)
+            return cls(None, np.zeros((len(PAIRS), 0)), np.zeros(len(PAIRS)), 0)
         vectorizer = DictVectorizer(sparse=False)
         matrix = vectorizer.fit_transform([features for features, _ in data])
-        pairs: dict[tuple[int, int], LogisticRegression | float] = {}
-        for i, j in PAIRS:
+        weights = np.zeros((len(PAIRS), matrix.shape[1]))
+        intercepts = np.zeros(len(PAIRS))
+        for k, (i, j) in enumerate(PAIRS):
             a, b = ACTIVITIES[i], ACTIVITIES[j]
             index, labels = [], []
             for row, (_, liking) in enumerate(data):
@@ -111,12 +116,15 @@ class PreferenceModel:
                     index.append(row)
                     labels.append(1 if liking[a] > liking[b] else 0)
             if len(set(labels)) < 2:
-                pairs[(i, j)] = float(labels[0]) if labels else 0.5
+                # One-sided or no evidence: a constant, kept away from certainty.
+                share = (sum(labels) + 1) / (len(labels) + 2)
+                intercepts[k] = float(np.log(share / (1 - share)))
                 continue
             classifier = LogisticRegression(C=1.0, max_iter=500)
             classifier.fit(matrix[index], np.array(labels))
-            pairs[(i, j)] = classifier
-        return cls(vectorizer, pairs, len(data))
+            weights[k] = classifier.coef_[0]
+            intercepts[k] = classifier.intercept_[0]
+        return cls(vectorizer, weights, intercepts, len(data))
 
     @classmethod
     def from_seed(cls) -> PreferenceModel:
@@ -150,16 +158,12 @@ class PreferenceModel:
         None when the features are empty or unknown to the model."""
         if self._vectorizer is None or not self.usable(features):
             return None
-        vector = self._vectorizer.transform([encode(features)])
+        vector = self._vectorizer.transform([encode(features)])[0]
+        first_wins = 1.0 / (1.0 + np.exp(-(self._weights @ vector + self._intercepts)))
         wins = np.zeros(len(ACTIVITIES))
-        for (i, j), model in self._pairs.items():
-            p = (
-                float(model)
-                if isinstance(model, float)
-                else float(model.predict_proba(vector)[0, 1])
-            )
-            wins[i] += p
-            wins[j] += 1.0 - p
+        for k, (i, j) in enumerate(PAIRS):
+            wins[i] += first_wins[k]
+            wins[j] += 1.0 - first_wins[k]
         wins /= len(ACTIVITIES) - 1
         return {name: float(wins[k]) for k, name in enumerate(ACTIVITIES)}
 
@@ -180,6 +184,9 @@ def _seed_model() -> PreferenceModel:
 
 PRIOR_STRENGTH = 2.0
 """How many observations the prediction is worth against the user's own evidence."""
+
+NOVELTY_PROBABILITY = 0.15
+"""Chance to pick an activity the user has never done, while there is one."""
 
 
 class ActivityChooser:
@@ -218,10 +225,17 @@ class ActivityChooser:
         return sorted(names, key=lambda name: -beliefs[name][0] / sum(beliefs[name]))
 
     def choose(self, profile: Profile, rng: random.Random, exclude: Collection[str] = ()) -> str:
-        """One activity not in ``exclude``: the best of one draw from each belief, so
-        little-known activities get tried and favorites win as evidence grows."""
+        """One activity not in ``exclude``.
+
+        With probability :data:`NOVELTY_PROBABILITY` one the user never did; otherwise
+        the best of one draw from each belief (Thompson sampling), so little-known
+        activities still get tried and favorites win as evidence grows.
+        """
         profile = self._fresh(profile)
         beliefs = self.beliefs(profile)
         names = [name for name in ACTIVITIES if name not in exclude] or list(ACTIVITIES)
+        untried = [name for name in names if name not in profile.scores]
+        if untried and rng.random() < NOVELTY_PROBABILITY:
+            return rng.choice(untried)
         draws = {name: rng.betavariate(*beliefs[name]) for name in names}
         return max(names, key=lambda name: draws[name])

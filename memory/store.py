@@ -503,7 +503,7 @@ class ProfileStore:
         """
         with self._session() as session:
             out = []
-            for row in session.scalars(select(UserRow).order_by(UserRow.user_id)):
+            for row in session.scalars(select(UserRow).order_by(UserRow.user_id)).unique():
                 profile = snapshot(row)
                 means = {
                     name: mean
