@@ -1,0 +1,69 @@
+"""``dms users list|show|export|erase`` on a real database, also while a daemon holds it."""
+
+from __future__ import annotations
+
+import json
+from datetime import timedelta
+
+from sqlalchemy import text
+from typer.testing import CliRunner
+
+from memory import ProfileNotFound, ProfileStore
+from memory.cli import app
+from tests.memory.conftest import NOW
+
+
+def _run(*args: str) -> tuple[int, str, BaseException | None]:
+    result = CliRunner().invoke(app, list(args))
+    error = result.exception if not isinstance(result.exception, SystemExit) else None
+    return result.exit_code, result.output, error
+
+
+def _fill(store: ProfileStore) -> None:
+    for user in ("bob", "ann"):
+        store.get_or_create(user, NOW)
+        store.update(user, NOW, name=user.title(), age=80)
+        session = store.start_session(user, NOW)
+        store.record_activity(
+            user, "quiz", NOW, NOW + timedelta(minutes=3), "completed", "robot", False, session
+        )
+        store.record_feedback(user, "quiz", 1.0, NOW)
+
+
+def test_list_show_export(store: ProfileStore, db_url: str) -> None:
+    _fill(store)
+    code, out, _ = _run("list", "--db", db_url)
+    assert (code, out.split()) == (0, ["ann", "bob"])
+    code, out, _ = _run("show", "ann", "--db", db_url)
+    shown = json.loads(out)
+    assert code == 0 and shown["name"] == "Ann" and shown["age"] == 80
+    assert "sessions" not in shown
+    code, out, _ = _run("export", "ann", "--db", db_url)
+    exported = json.loads(out)
+    assert code == 0
+    assert exported["profile"]["name"] == "Ann"
+    assert [run["activity"] for run in exported["activities"]] == ["quiz"]
+    assert exported["feedback"][0]["score"] == 1.0
+
+
+def test_erase_while_the_daemon_holds_the_database(store: ProfileStore, db_url: str) -> None:
+    _fill(store)
+    # The daemon is in the middle of a read when the erase comes.
+    with store.engine.connect() as daemon_connection:
+        daemon_connection.execute(text("SELECT COUNT(*) FROM users")).scalar_one()
+        code, out, error = _run("erase", "ann", "--db", db_url)
+        assert (code, error) == (0, None)
+        assert "erased ann" in out
+    assert store.list_ids() == ["bob"]
+    # The daemon keeps writing after the erase.
+    store.record_feedback("bob", "dance", 0.5, NOW)
+    code, out, _ = _run("list", "--db", db_url)
+    assert out.split() == ["bob"]
+
+
+def test_unknown_user_is_a_one_line_error(store: ProfileStore, db_url: str) -> None:
+    for command in ("show", "export", "erase"):
+        code, _, error = _run(command, "nobody", "--db", db_url)
+        assert code != 0
+        assert isinstance(error, ProfileNotFound)
+        assert str(error) == "no profile for user 'nobody'"
