@@ -286,7 +286,7 @@ class Controller:
     def _on_touch(self, touch: Touch, now: datetime) -> None:
         running = self.current
         if touch.part == "right_shoulder" and running is not None and self.dialog is None:
-            if running.chosen_by != "motivation" and running.name not in ("notification",):
+            if running.chosen_by != "motivation" and not running.paused and running.name != "notification":
                 self._pause(running, "confirm_cancel", now, "right shoulder touched")
                 self._open_dialog(confirm_dialog(running.name, now, self.settings.confirm_timeout_s), now)
                 return
@@ -368,9 +368,6 @@ class Controller:
         if session is not None and self._user_gone(session.user_id):
             missing = self._snapshot is not None and keys.PERCEPTION_USER not in self._snapshot.values
             reason: Reason = "input_missing" if missing else "user_left"
-            if self.dialog is not None and self.dialog.kind is not DialogKind.CONFIRM_CANCEL:
-                self.dialog = None
-                self.deps.expression.interrupt_source(DIALOG_SOURCE, now)
             for running in (self.current, self.suspended):
                 if running is not None and running.user_id == session.user_id:
                     self._cancel(running, reason, now, f"{session.user_id} is gone")
@@ -536,15 +533,13 @@ class Controller:
                 self.current = None  # the manager lost it: start afresh
             return
         self.current = None
-        if running.agenda_item is not None and self.deps.agenda is not None:
-            self._agenda_call("delivered", running.agenda_item, now)
         if reply.status is ManagerStatus.FAILED:
             self.counters.activity_failures += 1
             self._decide("fail", running.name, "activity_error", running.chosen_by, reply.detail, now)
             self._finish_user_activity(running, "failed", now, ask_feedback=False)
         elif reply.status is ManagerStatus.COMPLETED:
             self._decide("complete", running.name, "completed", running.chosen_by, reply.detail, now)
-            self._finish_user_activity(running, "completed", now, ask_feedback=True)
+            self._finish_user_activity(running, "completed", now, ask_feedback=not reply.redirect)
             if reply.redirect:
                 self._follow_redirect(running, reply.redirect, now)
         elif reply.status is ManagerStatus.CANCELLED:
@@ -622,6 +617,8 @@ class Controller:
         for item in self._due_items(now):
             if running.paused or running.name == "notification":
                 break
+            if item.kind == "reminder" and running.manager is ManagerName.GENERAL:
+                continue  # the menu and instructions are short: the reminder waits
             if item.kind == "reminder" and self.suspended is None:
                 if self._interruption_allowed(running):
                     self._pause(running, "agenda", now, f"reminder {item.item_id}")
@@ -753,8 +750,11 @@ class Controller:
             started = self._start(
                 item.activity or "wait", "agenda", "agenda", now, f"event {item.item_id}", agenda_item=item
             )
-        if not started and self.deps.agenda is not None:
+        if self.deps.agenda is not None:
+            # Delivered once started (or failed to start): an item never runs twice.
             self._agenda_call("delivered", item, now)
+        if not started:
+            log.warning("agenda item %s did not start", item.item_id)
 
     def _agenda_call(self, method: str, *args: Any) -> Any:
         try:
