@@ -28,7 +28,7 @@ from dms.profiles import ProfileService
 from dms.rules import LiveRules, RulesError
 from memory import ActivityChooser, PreferenceModel, ProfileError, ProfileStore, QuestionBank
 from memory.db import default_url
-from motivation import MotivationConfig, MotivationModel
+from motivation import MotivationConfigError, MotivationModel, load_config
 
 
 @dataclass
@@ -52,12 +52,17 @@ class Stack:
                 close()
 
 
-def hour_in(timezone: str) -> Callable[[datetime], int]:
-    """The hour of day in ``timezone``, for ``params.env.time``."""
+def zone_of(timezone: str) -> zoneinfo.ZoneInfo:
+    """The robot's time zone; its wall clock drives the circadian rhythm and ``params.env.time``."""
     try:
-        zone = zoneinfo.ZoneInfo(timezone)
+        return zoneinfo.ZoneInfo(timezone)
     except (zoneinfo.ZoneInfoNotFoundError, ValueError):
         raise ConfigError(f"timezone: unknown time zone {timezone!r}") from None
+
+
+def hour_in(timezone: str) -> Callable[[datetime], int]:
+    """The hour of day in ``timezone``, for ``params.env.time``."""
+    zone = zone_of(timezone)
     return lambda t: t.astimezone(zone).hour
 
 
@@ -73,11 +78,9 @@ def build_stack(
     """Open everything ``settings`` names; raise DmsError with one line if anything is wrong."""
     rng = rng or random.Random(settings.seed)
     try:
-        motivation = MotivationModel(MotivationConfig.model_validate(settings.motivation))
-    except DmsError:
-        raise
-    except ValueError as error:
-        raise ConfigError(f"[motivation]: {error}") from None
+        motivation = MotivationModel(load_config(settings.motivation), zone_of(settings.timezone))
+    except MotivationConfigError as error:
+        raise ConfigError(str(error)) from None
     hour = hour_in(settings.timezone)
     library = BehaviorLibrary.load()
     rules: LiveRules | None = None

@@ -11,7 +11,6 @@ import sys
 from pathlib import Path
 from typing import Annotated
 
-import click
 import typer
 
 from activities.cli import app as behavior_app
@@ -89,15 +88,19 @@ def run(
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the console script; returns the exit code."""
     try:
-        app(args=argv, standalone_mode=False)
-    except click.exceptions.Exit as done:
+        result = app(args=argv, standalone_mode=False)
+    except typer.Exit as done:
         return int(done.exit_code or 0)
-    except click.exceptions.Abort:
+    except typer.Abort:
         print("dms: aborted", file=sys.stderr)
         return 130
-    except click.exceptions.ClickException as error:
-        print(f"dms: {error.format_message()}", file=sys.stderr)
-        return error.exit_code or 2
+    except typer.TyperException as error:
+        show = getattr(error, "show", None)
+        if callable(show):
+            show()  # usage errors print the usage line and the one-line message
+        else:
+            print(f"dms: {error}", file=sys.stderr)
+        return int(getattr(error, "exit_code", 2) or 2)
     except DmsError as error:
         print(f"dms: {error}", file=sys.stderr)
         return 1
@@ -106,8 +109,4 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as error:
         print(f"dms: {error}", file=sys.stderr)
         return 1
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+    return result if isinstance(result, int) else 0

@@ -1,0 +1,34 @@
+"""The robot's artificial biology: drives, stimuli, motivations, the dominant one, wellbeing.
+
+``MotivationModel`` is pure: the controller steps it once a tick with the stimuli it
+builds from the inputs; simulations jump ahead with ``advance`` and ``simulate``.
+"""
+
+from motivation.config import (
+    DEFAULT_DRIVES,
+    DriveConfig,
+    MotivationConfig,
+    MotivationConfigError,
+    StimulusConfig,
+    load_config,
+)
+from motivation.model import NO_DOMINANT, MotivationModel, MotivationState, local_seconds
+from motivation.stimuli import Percepts, Stimuli
+from motivation.trajectory import Run, simulate
+
+__all__ = [
+    "DEFAULT_DRIVES",
+    "NO_DOMINANT",
+    "DriveConfig",
+    "MotivationConfig",
+    "MotivationConfigError",
+    "MotivationModel",
+    "MotivationState",
+    "Percepts",
+    "Run",
+    "Stimuli",
+    "StimulusConfig",
+    "load_config",
+    "local_seconds",
+    "simulate",
+]

@@ -1,0 +1,205 @@
+"""Long runs of the model in numpy: ``advance`` and the idle robot's days.
+
+``simulate`` gives what calling ``MotivationModel.step`` every ``tick_s`` would give,
+without the Python loop: within a window of ticks with the same inputs each drive is
+an exact clipped walk (``dynamics.clipped_walk`` over the closed-form change of each
+tick, split where the drive turns), and the dominant motivation is found by jumping
+from one switch to the next. With ``follow=True`` the running behavior follows the
+dominant motivation, as an idle robot does: at each switch the window restarts with
+the new behavior's satisfaction.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from datetime import datetime, timedelta
+
+import numpy as np
+from numpy.typing import NDArray
+
+from motivation.dynamics import OMEGA, TWO_PI, FloatArray, clipped_walk, integrals, pieces
+from motivation.model import NO_DOMINANT, MotivationModel, MotivationState, local_seconds
+from motivation.stimuli import Stimuli
+
+IntArray = NDArray[np.int64]
+FIRST_WINDOW = 4096
+LARGEST_WINDOW = 1 << 17
+
+
+@dataclass(frozen=True)
+class Run:
+    """The end state and the samples taken every ``every`` ticks (seconds from the start)."""
+
+    final: MotivationState
+    end: datetime
+    seconds: FloatArray
+    drives: FloatArray
+    motivations: FloatArray
+    dominant: IntArray
+    wellbeing: FloatArray
+    ticks: int
+    switches: int
+    """How many times the running behavior changed (with ``follow``)."""
+
+
+def _turning_intervals(a: float, b: float, peak_s: float, times: FloatArray) -> IntArray:
+    """Indexes of the intervals inside which the drive's rate changes sign."""
+    if b <= 0.0 or abs(a) >= b:
+        return np.zeros(0, dtype=np.int64)
+    alpha = math.acos(-a / b)
+    theta = OMEGA * (times - peak_s)
+    count = np.zeros(len(times) - 1, dtype=np.int64)
+    for base in (alpha, -alpha):
+        low = np.floor((theta[:-1] - base) / TWO_PI) + 1
+        high = np.ceil((theta[1:] - base) / TWO_PI) - 1
+        count += np.maximum(0, high - low + 1).astype(np.int64)
+    return np.flatnonzero(count)
+
+
+def drive_path(drive: float, a: float, b: float, peak_s: float, times: FloatArray) -> FloatArray:
+    """The drive at ``times[1:]`` from ``drive`` at ``times[0]``, exactly (see module doc)."""
+    changes = integrals(a, b, peak_s, times)
+    turning = _turning_intervals(a, b, peak_s, times)
+    if turning.size == 0:
+        return clipped_walk(drive, changes)
+    split = {int(j): pieces(a, b, peak_s, float(times[j]), float(times[j + 1])) for j in turning}
+    counts = np.ones(len(changes), dtype=np.int64)
+    for j, parts in split.items():
+        counts[j] = len(parts)
+    refined = np.repeat(changes, counts)
+    starts = np.cumsum(counts) - counts
+    for j, parts in split.items():
+        refined[starts[j] : starts[j] + len(parts)] = parts
+    return clipped_walk(drive, refined)[np.cumsum(counts) - 1]
+
+
+def scan_dominance(model: MotivationModel, previous: int, drives: FloatArray, levels: FloatArray) -> IntArray:
+    """The dominant drive after each row of ``drives``; the same rule as ``next_dominant``."""
+    table = model.table
+    raw = drives + table.alpha * levels
+    above = drives >= table.threshold
+    held = drives >= table.release
+    masked = np.where(above, raw, -np.inf)
+    out = np.empty(len(drives), dtype=np.int64)
+    position, dominant = 0, previous
+    while position < len(drives):
+        if dominant == NO_DOMINANT:
+            found = np.flatnonzero(above[position:].any(axis=1))
+            if found.size == 0:
+                out[position:] = NO_DOMINANT
+                break
+            j = position + int(found[0])
+            out[position:j] = NO_DOMINANT
+            dominant = int(np.argmax(masked[j]))
+        else:
+            others = masked[position:].copy()
+            others[:, dominant] = -np.inf
+            challenge = others.max(axis=1) > raw[position:, dominant] + model.config.hysteresis
+            found = np.flatnonzero(~held[position:, dominant] | challenge)
+            if found.size == 0:
+                out[position:] = dominant
+                break
+            j = position + int(found[0])
+            out[position:j] = dominant
+            if held[j, dominant]:
+                dominant = int(np.argmax(others[j - position]))
+            else:
+                dominant = int(np.argmax(masked[j])) if above[j].any() else NO_DOMINANT
+        out[j] = dominant
+        position = j + 1
+    return out
+
+
+def motivations_of(model: MotivationModel, drives: FloatArray, levels: FloatArray, dominant: IntArray) -> FloatArray:
+    """``M_i`` for each row, with each row's dominant drive held down to its satiation level."""
+    table = model.table
+    active = drives >= table.threshold
+    rows = np.flatnonzero(dominant != NO_DOMINANT)
+    columns = dominant[rows]
+    active[rows, columns] = drives[rows, columns] >= table.release[columns]
+    return np.where(active, drives + table.alpha * levels, 0.0)
+
+
+def simulate(
+    model: MotivationModel,
+    state: MotivationState,
+    start: datetime,
+    duration: float,
+    stimuli: Stimuli,
+    running: str | None = None,
+    follow: bool = False,
+    tick_s: float = 0.5,
+    every: int = 1,
+) -> Run:
+    """Run the model from ``start`` for ``duration`` seconds at ``tick_s`` ticks.
+
+    ``running`` is the behavior for the whole run unless ``follow``, where it is the
+    dominant motivation's behavior at each tick. ``every`` > 0 keeps one sample every
+    that many ticks (0 keeps none). A last partial tick, if any, is one ``step``.
+    """
+    if tick_s <= 0 or duration < 0:
+        raise ValueError(f"tick_s must be positive and duration not negative, got {tick_s}, {duration}")
+    table = model.table
+    ticks = int(duration // tick_s)
+    origin = local_seconds(start, model.zone)
+    drives = np.maximum(0.0, state.drives - stimuli.instant)
+    dominant = state.dominant
+    levels = stimuli.levels
+    current = model.behavior(state) if follow else running
+    sampled: list[tuple[FloatArray, FloatArray, IntArray]] = []
+    position, window, switches = 0, FIRST_WINDOW, 0
+    while position < ticks:
+        width = min(window, ticks - position)
+        times = origin + tick_s * np.arange(position, position + width + 1, dtype=np.float64)
+        growth, swing = model.net_growth(stimuli, current), model.swing(current)
+        block = np.empty((width, len(model.names)), dtype=np.float64)
+        for i in range(len(model.names)):
+            block[:, i] = drive_path(
+                float(drives[i]), float(growth[i]), float(swing[i]), float(table.peak_s[i]), times
+            )
+        doms = scan_dominance(model, dominant, block, levels)
+        accepted, switched = width, False
+        if follow:
+            names = np.array([*table.behaviors, model.config.idle_behavior])
+            changed = np.flatnonzero(names[doms] != current)
+            if changed.size:
+                accepted, switched = int(changed[0]) + 1, True
+        if every > 0:
+            index = np.arange(position, position + accepted)
+            keep = (index + 1) % every == 0
+            sampled.append(((index[keep] + 1) * tick_s, block[:accepted][keep], doms[:accepted][keep]))
+        drives, dominant = block[accepted - 1].copy(), int(doms[accepted - 1])
+        position += accepted
+        if switched:
+            switches += 1
+            current = model.behavior(MotivationState(drives, levels, dominant))
+            window = FIRST_WINDOW
+        else:
+            window = min(2 * window, LARGEST_WINDOW)
+    final = MotivationState(drives, levels, dominant)
+    end = start + timedelta(seconds=ticks * tick_s)
+    rest = duration - ticks * tick_s
+    if rest > 1e-9:
+        final = model.step(final, rest, stimuli.without_instant(), current, start + timedelta(seconds=duration))
+        end = start + timedelta(seconds=duration)
+    return _run(model, final, end, sampled, ticks, switches)
+
+
+def _run(
+    model: MotivationModel,
+    final: MotivationState,
+    end: datetime,
+    sampled: list[tuple[FloatArray, FloatArray, IntArray]],
+    ticks: int,
+    switches: int,
+) -> Run:
+    width = len(model.names)
+    seconds = np.concatenate([s for s, _, _ in sampled]) if sampled else np.zeros(0)
+    drives = np.concatenate([d for _, d, _ in sampled]) if sampled else np.zeros((0, width))
+    dominant = np.concatenate([m for _, _, m in sampled]) if sampled else np.zeros(0, dtype=np.int64)
+    omega = model.table.omega
+    total = float(omega.sum())
+    wellbeing = 100.0 - (drives @ omega) / total if total else np.full(len(drives), 100.0)
+    motivations = motivations_of(model, drives, final.levels, dominant)
+    return Run(final, end, seconds, drives, motivations, dominant, wellbeing, ticks, switches)
