@@ -110,3 +110,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"dms: {error}", file=sys.stderr)
         return 1
     return result if isinstance(result, int) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -25,8 +25,16 @@ def default_url() -> str:
     return f"sqlite:///{folder / 'dms.db'}"
 
 
+def as_url(value: str) -> str:
+    """A database URL from ``--db``: a URL as is, a plain file path as a SQLite file."""
+    if "://" in value or value == "sqlite:":
+        return value
+    return f"sqlite:///{Path(value).expanduser().absolute()}"
+
+
 def make_engine(url: str, **kwargs: Any) -> Engine:
     """An engine for ``url``; SQLite files get WAL, FULL sync, busy timeout, foreign keys."""
+    url = as_url(url)
     parsed = make_url(url)
     if parsed.get_backend_name() == "sqlite":
         database = parsed.database

@@ -20,7 +20,7 @@ from sqlalchemy.exc import ArgumentError, DBAPIError, IntegrityError, SQLAlchemy
 from sqlalchemy.orm import Session, sessionmaker
 
 from memory import migrations
-from memory.db import default_url, make_engine
+from memory.db import as_url, default_url, make_engine
 from memory.errors import ProfileError, ProfileNotFound, SchemaOutOfDate, StoreUnavailable
 from memory.models import (
     ActivityRunRow,
@@ -146,7 +146,7 @@ class ProfileStore:
     """
 
     def __init__(self, url: str | None = None) -> None:
-        self.url = url or default_url()
+        self.url = as_url(url) if url else default_url()
         try:
             shown = make_url(self.url).render_as_string(hide_password=True)
         except ArgumentError as error:

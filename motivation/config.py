@@ -41,31 +41,31 @@ class DriveConfig(BaseModel):
     """False removes a default drive."""
     rate_per_hour: float = Field(ge=0, le=100)
     """Mean growth in points per hour."""
-    amplitude: float = Field(0.0, ge=0, le=1)
+    amplitude: float = Field(default=0.0, ge=0, le=1)
     """Daily modulation of the rate: it runs from (1 - amplitude) to (1 + amplitude) times it."""
-    peak_hour: float = Field(0.0, ge=0, lt=24)
+    peak_hour: float = Field(default=0.0, ge=0, lt=24)
     """Local hour at which the rate is highest (for rest: the middle of the night)."""
     threshold: float = Field(ge=0, le=100)
     """L_d: below it the drive gives no motivation."""
-    satiation: float | None = Field(None, ge=0, le=100)
+    satiation: float | None = Field(default=None, ge=0, le=100)
     """A dominant drive stays dominant until it falls below this (default: its threshold)."""
-    stimulus_weight: float = Field(0.0, ge=0, le=100)
+    stimulus_weight: float = Field(default=0.0, ge=0, le=100)
     """alpha: how much a full stimulus adds to the motivation."""
-    wellbeing_weight: float = Field(1.0, ge=0, le=100)
+    wellbeing_weight: float = Field(default=1.0, ge=0, le=100)
     """omega: the drive's share in wellbeing."""
     stimuli: tuple[StimulusSource, ...] = ()
     """The sources that excite it; its stimulus is the largest of them."""
     relieved_by: dict[StimulusSource, float] = Field(default_factory=dict)
     """Points per minute a full stimulus takes off the drive (a user engaged calms loneliness)."""
-    touch_relief: float = Field(0.0, ge=0, le=100)
+    touch_relief: float = Field(default=0.0, ge=0, le=100)
     """Points each caress takes off the drive at once."""
     behavior: str
     """What the robot does when this drive dominates and nobody interacts."""
     satisfied_by: dict[str, float] = Field(default_factory=dict)
     """Behavior name -> points per minute it takes off the drive while it runs."""
     dormant_during: tuple[str, ...] = ()
-    """Behaviors during which the drive does not grow (a sleeping robot grows neither lonely nor bored)."""
-    initial: float = Field(20.0, ge=0, le=100)
+    """Behaviors during which it does not grow (asleep, the robot gets neither lonely nor bored)."""
+    initial: float = Field(default=20.0, ge=0, le=100)
     """The drive when the daemon starts."""
 
     _check_behavior = field_validator("behavior")(_known_behavior)
@@ -97,7 +97,9 @@ class DriveConfig(BaseModel):
     @model_validator(mode="after")
     def _satiation_below_threshold(self) -> DriveConfig:
         if self.satiation is not None and self.satiation > self.threshold:
-            raise ValueError(f"satiation ({self.satiation}) must not exceed threshold ({self.threshold})")
+            raise ValueError(
+                f"satiation ({self.satiation}) must not exceed threshold ({self.threshold})"
+            )
         return self
 
     @property
@@ -111,13 +113,13 @@ class StimulusConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    dark_lux: float = Field(300.0, gt=0, le=100_000)
+    dark_lux: float = Field(default=300.0, gt=0, le=100_000)
     """Light at or above this is not dark at all; 0 lux is fully dark."""
-    quiet_db: float = Field(30.0, ge=0, le=150)
+    quiet_db: float = Field(default=30.0, ge=0, le=150)
     """Noise at or below this is fully quiet."""
-    loud_db: float = Field(60.0, ge=0, le=150)
+    loud_db: float = Field(default=60.0, ge=0, le=150)
     """Noise at or above this is not quiet at all."""
-    default_engagement: float = Field(0.5, ge=0, le=1)
+    default_engagement: float = Field(default=0.5, ge=0, le=1)
     """The user stimulus when a user is present but engagement is unknown."""
 
     @model_validator(mode="after")
@@ -181,13 +183,15 @@ class MotivationConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     drives: dict[str, DriveConfig] = Field(
-        default_factory=lambda: {name: DriveConfig.model_validate(spec) for name, spec in DEFAULT_DRIVES.items()}
+        default_factory=lambda: {
+            name: DriveConfig.model_validate(spec) for name, spec in DEFAULT_DRIVES.items()
+        }
     )
-    hysteresis: float = Field(10.0, ge=0, le=100)
+    hysteresis: float = Field(default=10.0, ge=0, le=100)
     """Another motivation must exceed the dominant one by this much to take over."""
     idle_behavior: str = "wait"
     """What the robot does when no motivation is active."""
-    stimuli: StimulusConfig = Field(default_factory=StimulusConfig)
+    stimuli: StimulusConfig = Field(default_factory=lambda: StimulusConfig())
 
     _check_idle = field_validator("idle_behavior")(_known_behavior)
 

@@ -14,6 +14,7 @@ ticks and a month-long jump go through the same code. Everything here is pure.
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -29,7 +30,9 @@ FloatArray = NDArray[np.float64]
 
 def integral(a: float, b: float, peak_s: float, t0: float, t1: float) -> float:
     """The unclipped change of a drive over [t0, t1]."""
-    return a * (t1 - t0) + (b / OMEGA) * (math.sin(OMEGA * (t1 - peak_s)) - math.sin(OMEGA * (t0 - peak_s)))
+    return a * (t1 - t0) + (b / OMEGA) * (
+        math.sin(OMEGA * (t1 - peak_s)) - math.sin(OMEGA * (t0 - peak_s))
+    )
 
 
 def integrals(a: FloatArray | float, b: float, peak_s: float, times: FloatArray) -> FloatArray:
@@ -58,7 +61,7 @@ def sign_changes(a: float, b: float, peak_s: float, t0: float, t1: float) -> lis
 def pieces(a: float, b: float, peak_s: float, t0: float, t1: float) -> list[float]:
     """The changes over [t0, t1] split where the drive turns, each one-signed."""
     cuts = [t0, *sign_changes(a, b, peak_s, t0, t1), t1]
-    return [integral(a, b, peak_s, u0, u1) for u0, u1 in zip(cuts, cuts[1:], strict=False)]
+    return [integral(a, b, peak_s, u0, u1) for u0, u1 in itertools.pairwise(cuts)]
 
 
 def apply(drive: float, change: float) -> float:
@@ -73,7 +76,9 @@ def evolve(drive: float, a: float, b: float, peak_s: float, t0: float, t1: float
     return drive
 
 
-def clipped_walk(start: float, changes: FloatArray, low: float = LOW, high: float = HIGH) -> FloatArray:
+def clipped_walk(
+    start: float, changes: FloatArray, low: float = LOW, high: float = HIGH
+) -> FloatArray:
     """``out[j]`` after applying ``changes[0..j]`` one by one, each clipped into [low, high].
 
     The same as a loop of ``apply`` but in numpy: with only the lower wall, the walk is

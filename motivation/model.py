@@ -90,12 +90,14 @@ class MotivationModel:
         self._satisfaction: dict[str | None, FloatArray] = {None: np.zeros(len(self.names))}
         for behavior in {name for d in drives.values() for name in d.satisfied_by}:
             self._satisfaction[behavior] = np.array(
-                [d.satisfied_by.get(behavior, 0.0) / 60.0 for d in drives.values()], dtype=np.float64
+                [d.satisfied_by.get(behavior, 0.0) / 60.0 for d in drives.values()],
+                dtype=np.float64,
             )
         self._awake: dict[str | None, FloatArray] = {None: np.ones(len(self.names))}
         for behavior in {name for d in drives.values() for name in d.dormant_during}:
             self._awake[behavior] = np.array(
-                [0.0 if behavior in d.dormant_during else 1.0 for d in drives.values()], dtype=np.float64
+                [0.0 if behavior in d.dormant_during else 1.0 for d in drives.values()],
+                dtype=np.float64,
             )
         self._relief_per_source = {
             name: {source: per_minute / 60.0 for source, per_minute in d.relieved_by.items()}
@@ -116,11 +118,17 @@ class MotivationModel:
         """The stimuli per drive for what is perceived now."""
         sources = source_levels(percepts, self.config.stimuli)
         levels = np.array(
-            [max((sources[s] for s in self._drive_sources[name]), default=0.0) for name in self.names],
+            [
+                max((sources[s] for s in self._drive_sources[name]), default=0.0)
+                for name in self.names
+            ],
             dtype=np.float64,
         )
         relief = np.array(
-            [sum(rate * sources[s] for s, rate in self._relief_per_source[name].items()) for name in self.names],
+            [
+                sum(rate * sources[s] for s, rate in self._relief_per_source[name].items())
+                for name in self.names
+            ],
             dtype=np.float64,
         )
         return Stimuli(levels, relief, self.table.touch_relief * caress_count(percepts))
@@ -137,16 +145,25 @@ class MotivationModel:
     def net_growth(self, stimuli: Stimuli, running: str | None) -> FloatArray:
         """The constant part ``a`` of each drive's rate for these inputs."""
         awake = self._awake.get(running, self._awake[None])
-        return np.asarray(self.table.base * awake - self.satisfaction(running) - stimuli.relief, dtype=np.float64)
+        return np.asarray(
+            self.table.base * awake - self.satisfaction(running) - stimuli.relief, dtype=np.float64
+        )
 
     def swing(self, running: str | None) -> FloatArray:
         """The daily part ``b`` of each drive's rate while ``running`` runs."""
-        return np.asarray(self.table.swing * self._awake.get(running, self._awake[None]), dtype=np.float64)
+        return np.asarray(
+            self.table.swing * self._awake.get(running, self._awake[None]), dtype=np.float64
+        )
 
     # ------------------------------------------------------------------ the step
 
     def step(
-        self, state: MotivationState, dt: float, stimuli: Stimuli, running: str | None, now: datetime
+        self,
+        state: MotivationState,
+        dt: float,
+        stimuli: Stimuli,
+        running: str | None,
+        now: datetime,
     ) -> MotivationState:
         """The state at ``now`` from the state at ``now - dt`` under these inputs, exactly.
 
@@ -163,12 +180,16 @@ class MotivationModel:
         drives = np.maximum(0.0, state.drives - stimuli.instant)
         evolved = np.array(
             [
-                evolve(float(drives[i]), float(growth[i]), float(swing[i]), float(peaks[i]), start, end)
+                evolve(
+                    float(drives[i]), float(growth[i]), float(swing[i]), float(peaks[i]), start, end
+                )
                 for i in range(len(self.names))
             ],
             dtype=np.float64,
         )
-        return MotivationState(evolved, stimuli.levels, self.next_dominant(state.dominant, evolved, stimuli.levels))
+        return MotivationState(
+            evolved, stimuli.levels, self.next_dominant(state.dominant, evolved, stimuli.levels)
+        )
 
     def advance(
         self,
@@ -192,7 +213,9 @@ class MotivationModel:
 
     # ------------------------------------------------------------------ reading a state
 
-    def motivations(self, drives: FloatArray, levels: FloatArray, dominant: int = NO_DOMINANT) -> FloatArray:
+    def motivations(
+        self, drives: FloatArray, levels: FloatArray, dominant: int = NO_DOMINANT
+    ) -> FloatArray:
         """``M_i``: the drive plus its stimulus when active, else 0."""
         active = drives >= self.table.threshold
         if dominant != NO_DOMINANT:
@@ -201,7 +224,7 @@ class MotivationModel:
         return np.where(active, drives + self.table.alpha * levels, 0.0)
 
     def next_dominant(self, previous: int, drives: FloatArray, levels: FloatArray) -> int:
-        """The dominant drive after ``previous``, with hysteresis; NO_DOMINANT when none is active."""
+        """The dominant drive after ``previous``, with hysteresis; NO_DOMINANT if none is active."""
         table = self.table
         raw = drives + table.alpha * levels
         above = drives >= table.threshold
@@ -234,7 +257,11 @@ class MotivationModel:
         motivations = self.motivations(state.drives, state.levels, state.dominant)
         return {
             "dominant": self.dominant(state),
-            "drives": {name: round(float(v), 3) for name, v in zip(self.names, state.drives, strict=True)},
-            "motivations": {name: round(float(v), 3) for name, v in zip(self.names, motivations, strict=True)},
+            "drives": {
+                name: round(float(v), 3) for name, v in zip(self.names, state.drives, strict=True)
+            },
+            "motivations": {
+                name: round(float(v), 3) for name, v in zip(self.names, motivations, strict=True)
+            },
             "wellbeing": round(self.wellbeing(state.drives), 3),
         }

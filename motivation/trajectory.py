@@ -74,7 +74,9 @@ def drive_path(drive: float, a: float, b: float, peak_s: float, times: FloatArra
     return clipped_walk(drive, refined)[np.cumsum(counts) - 1]
 
 
-def scan_dominance(model: MotivationModel, previous: int, drives: FloatArray, levels: FloatArray) -> IntArray:
+def scan_dominance(
+    model: MotivationModel, previous: int, drives: FloatArray, levels: FloatArray
+) -> IntArray:
     """The dominant drive after each row of ``drives``; the same rule as ``next_dominant``."""
     table = model.table
     raw = drives + table.alpha * levels
@@ -111,7 +113,9 @@ def scan_dominance(model: MotivationModel, previous: int, drives: FloatArray, le
     return out
 
 
-def motivations_of(model: MotivationModel, drives: FloatArray, levels: FloatArray, dominant: IntArray) -> FloatArray:
+def motivations_of(
+    model: MotivationModel, drives: FloatArray, levels: FloatArray, dominant: IntArray
+) -> FloatArray:
     """``M_i`` for each row, with each row's dominant drive held down to its satiation level."""
     table = model.table
     active = drives >= table.threshold
@@ -139,7 +143,9 @@ def simulate(
     that many ticks (0 keeps none). A last partial tick, if any, is one ``step``.
     """
     if tick_s <= 0 or duration < 0:
-        raise ValueError(f"tick_s must be positive and duration not negative, got {tick_s}, {duration}")
+        raise ValueError(
+            f"tick_s must be positive and duration not negative, got {tick_s}, {duration}"
+        )
     table = model.table
     ticks = int(duration // tick_s)
     origin = local_seconds(start, model.zone)
@@ -168,7 +174,9 @@ def simulate(
         if every > 0:
             index = np.arange(position, position + accepted)
             keep = (index + 1) % every == 0
-            sampled.append(((index[keep] + 1) * tick_s, block[:accepted][keep], doms[:accepted][keep]))
+            sampled.append(
+                ((index[keep] + 1) * tick_s, block[:accepted][keep], doms[:accepted][keep])
+            )
         drives, dominant = block[accepted - 1].copy(), int(doms[accepted - 1])
         position += accepted
         if switched:
@@ -181,7 +189,9 @@ def simulate(
     end = start + timedelta(seconds=ticks * tick_s)
     rest = duration - ticks * tick_s
     if rest > 1e-9:
-        final = model.step(final, rest, stimuli.without_instant(), current, start + timedelta(seconds=duration))
+        final = model.step(
+            final, rest, stimuli.without_instant(), current, start + timedelta(seconds=duration)
+        )
         end = start + timedelta(seconds=duration)
     return _run(model, final, end, sampled, ticks, switches)
 
@@ -197,7 +207,9 @@ def _run(
     width = len(model.names)
     seconds = np.concatenate([s for s, _, _ in sampled]) if sampled else np.zeros(0)
     drives = np.concatenate([d for _, d, _ in sampled]) if sampled else np.zeros((0, width))
-    dominant = np.concatenate([m for _, _, m in sampled]) if sampled else np.zeros(0, dtype=np.int64)
+    dominant = (
+        np.concatenate([m for _, _, m in sampled]) if sampled else np.zeros(0, dtype=np.int64)
+    )
     omega = model.table.omega
     total = float(omega.sum())
     wellbeing = 100.0 - (drives @ omega) / total if total else np.full(len(drives), 100.0)
