@@ -14,6 +14,7 @@ from typer.testing import CliRunner
 
 from agenda import AgendaError, AgendaNotFound
 from agenda.cli import app
+from memory import ProfileStore
 
 FUTURE = (datetime.now(UTC) + timedelta(days=30)).replace(microsecond=0, tzinfo=None)
 
@@ -26,6 +27,11 @@ def _run(*args: str) -> tuple[int, str, BaseException | None]:
 
 @pytest.fixture
 def db(db_url: str) -> list[str]:
+    """The database of a profile store where "ann" and "bob" exist (the CLI refuses unknown users)."""
+    store = ProfileStore(db_url)
+    for user in ("ann", "bob"):
+        store.get_or_create(user, datetime.now(UTC))
+    store.close()
     return ["--db", db_url]
 
 
