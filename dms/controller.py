@@ -264,6 +264,9 @@ class Controller:
                 self._touches.append((message.part, message.kind))
                 self._on_touch(message, now)
             elif isinstance(message, Speech):
+                if message.confidence < self.settings.min_speech_confidence:
+                    log.info("not understood (confidence %.2f): %r", message.confidence, message.text)
+                    continue
                 self._on_answer(message.text, "voice", message, now)
             elif isinstance(message, ScreenChoice):
                 self._on_answer(message.choice, "screen", message, now)

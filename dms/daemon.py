@@ -55,6 +55,7 @@ class Daemon:
         clock: Clock | None = None,
     ) -> None:
         self.settings = settings
+        self._said: list[str] = []  # what the robot said this tick, printed after the decisions
         self.clock: Clock = clock or RealClock()
         self.print_decisions = print_decisions
         self.bus = bus or ZenohBus(
@@ -88,6 +89,8 @@ class Daemon:
 
     def _publish_command(self, command: RobotCommand) -> None:
         self.bus.publish(keys.ROBOT_COMMAND, command.model_dump(mode="json"))
+        if self.print_decisions and command.channel == "speech" and command.action == "say":
+            self._said.append(f"  {self.settings.robot_id} says {command.args.get('text', '')!r}")
 
     def report_error(self, key: str, error: str) -> None:
         """Publish one problem on ``dms/errors`` (thread-safe)."""
@@ -186,8 +189,20 @@ class Daemon:
         for decision in record.decisions:
             self.bus.publish(keys.DMS_DECISION, decision.model_dump(mode="json"))
             if self.print_decisions:
-                print(format_decision(decision), flush=True)
+                self._echo(format_decision(decision))
+        for line in self._said:
+            self._echo(line)
+        self._said.clear()
         self.bus.publish(keys.DMS_STATE, record.state.model_dump(mode="json"))
+
+    def _echo(self, line: str) -> None:
+        """One console line; a closed stdout (``| head``) turns printing off, never the daemon."""
+        if not self.print_decisions:
+            return
+        try:
+            print(line, flush=True)
+        except (BrokenPipeError, ValueError, OSError):
+            self.print_decisions = False
 
     def loop(self) -> None:
         """Tick until :meth:`stop`."""
@@ -203,11 +218,15 @@ class Daemon:
 
     def close(self) -> None:
         """Stop the running activity, flush the store, leave Zenoh."""
-        with self._lock:
-            record = self.stack.controller.shutdown(self.clock.now())
-        self._publish(record)
-        self.stack.close()
-        self.bus.close()
+        try:
+            with self._lock:
+                record = self.stack.controller.shutdown(self.clock.now())
+            self._publish(record)
+        finally:
+            try:
+                self.stack.close()
+            finally:
+                self.bus.close()
 
 
 def run_daemon(

@@ -25,6 +25,7 @@ from motivation.stimuli import Stimuli
 IntArray = NDArray[np.int64]
 FIRST_WINDOW = 4096
 LARGEST_WINDOW = 1 << 17
+SMALLEST_WINDOW = 16
 
 
 @dataclass(frozen=True)
@@ -125,6 +126,45 @@ def motivations_of(
     return np.where(active, drives + table.alpha * levels, 0.0)
 
 
+OFFSET_PROBE_S = 6 * 3600.0
+"""Offsets are probed at least this often inside a window: two daylight-saving
+changes are always further apart, so none is missed."""
+
+
+def _offset(model: MotivationModel, start: datetime, tick_s: float, tick: int) -> float:
+    """The zone's UTC offset at the end of tick number ``tick`` (1-based), in seconds."""
+    now = start + timedelta(seconds=tick * tick_s)
+    return local_seconds(now, model.zone) - now.timestamp()
+
+
+def _same_offset(
+    model: MotivationModel, start: datetime, tick_s: float, position: int, width: int
+) -> tuple[float, int]:
+    """The offset of the window's first tick and how many ticks from there share it.
+
+    ``step`` reads the wall clock at the end of each tick, so across a daylight-saving
+    change the rhythm jumps with it; a window stops before the first tick in the new
+    offset, and the next window starts there with it.
+    """
+    offset = _offset(model, start, tick_s, position + 1)
+    stride = max(1, int(OFFSET_PROBE_S // tick_s))
+    probes = [*range(position + 1 + stride, position + width, stride), position + width]
+    low = position + 1  # the last tick known to share the offset
+    for tick in probes:
+        if _offset(model, start, tick_s, tick) == offset:
+            low = tick
+            continue
+        high = tick  # the change is in (low, high]: bisect for its first tick
+        while high - low > 1:
+            middle = (low + high) // 2
+            if _offset(model, start, tick_s, middle) == offset:
+                low = middle
+            else:
+                high = middle
+        return offset, high - 1 - position
+    return offset, width
+
+
 def simulate(
     model: MotivationModel,
     state: MotivationState,
@@ -148,16 +188,19 @@ def simulate(
         )
     table = model.table
     ticks = int(duration // tick_s)
-    origin = local_seconds(start, model.zone)
+    epoch = start.timestamp()
     drives = np.maximum(0.0, state.drives - stimuli.instant)
     dominant = state.dominant
     levels = stimuli.levels
     current = model.behavior(state) if follow else running
     sampled: list[tuple[FloatArray, FloatArray, IntArray]] = []
-    position, window, switches = 0, FIRST_WINDOW, 0
+    position, window, switches, since_switch = 0, FIRST_WINDOW, 0, 0
     while position < ticks:
         width = min(window, ticks - position)
-        times = origin + tick_s * np.arange(position, position + width + 1, dtype=np.float64)
+        offset, width = _same_offset(model, start, tick_s, position, width)
+        times = (epoch + offset) + tick_s * np.arange(
+            position, position + width + 1, dtype=np.float64
+        )
         growth, swing = model.net_growth(stimuli, current), model.swing(current)
         block = np.empty((width, len(model.names)), dtype=np.float64)
         for i in range(len(model.names)):
@@ -179,16 +222,20 @@ def simulate(
             )
         drives, dominant = block[accepted - 1].copy(), int(doms[accepted - 1])
         position += accepted
+        since_switch += accepted
         if switched:
             switches += 1
             current = model.behavior(MotivationState(drives, levels, dominant))
-            window = FIRST_WINDOW
+            # the next behavior likely runs about as long as the last one: a window much
+            # longer would mostly be thrown away when switches come every few ticks
+            window = min(FIRST_WINDOW, max(SMALLEST_WINDOW, 2 * since_switch))
+            since_switch = 0
         else:
             window = min(2 * window, LARGEST_WINDOW)
     final = MotivationState(drives, levels, dominant)
     end = start + timedelta(seconds=ticks * tick_s)
     rest = duration - ticks * tick_s
-    if rest > 1e-9:
+    if rest > 1e-9 or ticks == 0:  # a run shorter than a tick is one step, even of 0 s
         final = model.step(
             final, rest, stimuli.without_instant(), current, start + timedelta(seconds=duration)
         )

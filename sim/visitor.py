@@ -133,7 +133,10 @@ def start_visitor(persona_name: str, settings: Settings) -> Callable[[], None]:
     client = ZenohClient(settings.robot_id, make_config(connect=settings.zenoh.listen))
 
     def echo(line: str) -> None:
-        print(line, file=sys.stderr, flush=True)
+        try:
+            print(line, file=sys.stderr, flush=True)
+        except (OSError, ValueError):
+            pass  # a closed console never stops the visitor
 
     visitor = Visitor(persona, client, RealClock(), random.Random(settings.seed), echo)
     thread = threading.Thread(target=visitor.run, name=f"visitor-{persona.name}", daemon=True)
