@@ -13,9 +13,9 @@ Usage: ``.venv/bin/python bench/bench_daemon.py [--quick]``
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import random
-import statistics
 import sys
 import tempfile
 import threading
@@ -95,10 +95,8 @@ def _vm_rss_mb(pid: int) -> float:
 
 
 def _intervals(states: list[dict[str, Any]]) -> list[float]:
-    times = [
-        datetime.fromisoformat(s["time"].replace("Z", "+00:00")).timestamp() for s in states
-    ]
-    return [b - a for a, b in zip(times, times[1:], strict=False)]
+    times = [datetime.fromisoformat(s["time"].replace("Z", "+00:00")).timestamp() for s in states]
+    return [b - a for a, b in itertools.pairwise(times)]
 
 
 def bench_live(touches: int, jitter_s: float, flood_s: float, flood_rate: int) -> dict[str, Any]:
@@ -160,7 +158,12 @@ def bench_live(touches: int, jitter_s: float, flood_s: float, flood_rate: int) -
                     put(
                         session,
                         "perception/user",
-                        {"present": True, "user_id": "ann", "ready": True, "engagement": engagement},
+                        {
+                            "present": True,
+                            "user_id": "ann",
+                            "ready": True,
+                            "engagement": engagement,
+                        },
                     )
                     sent += 1
                 rss_samples.append(_vm_rss_mb(pid))
@@ -169,7 +172,11 @@ def bench_live(touches: int, jitter_s: float, flood_s: float, flood_rate: int) -
             elapsed = time.perf_counter() - t0
             flood_states = states.messages[mark:]
             intervals = _intervals(flood_states)
-            put(session, "perception/user", {"present": True, "user_id": "ann", "ready": True, "engagement": 0.123})
+            put(
+                session,
+                "perception/user",
+                {"present": True, "user_id": "ann", "ready": True, "engagement": 0.123},
+            )
             t_last = time.perf_counter()
             # no backlog: the last value is seen within a tick or two of being sent
             states.wait_for(lambda s: True, start=states.mark(), timeout=5)

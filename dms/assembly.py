@@ -19,7 +19,7 @@ from activities import BehaviorLibrary
 from agenda import Agenda, AgendaError
 from dms.config import Settings
 from dms.controller import Controller, ControllerDeps
-from dms.errors import ConfigError, DmsError
+from dms.errors import ConfigError
 from dms.expression import ExpressionArbiter
 from dms.inputs import InputBoard
 from dms.messages import RobotCommand
@@ -117,7 +117,9 @@ def build_stack(
         except AgendaError as error:
             store.close()
             raise ConfigError(f"agenda {url}: {error}") from None
-    expression = ExpressionArbiter(robot, on_command, ack_timeout_s=settings.controller.ack_timeout_s)
+    expression = ExpressionArbiter(
+        robot, on_command, ack_timeout_s=settings.controller.ack_timeout_s
+    )
     inputs = InputBoard(settings.inputs.stale_after_s)
     deps = ControllerDeps(
         library=library,

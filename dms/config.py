@@ -29,10 +29,17 @@ class ZenohSettings(_Section):
     config_file: Path | None = None
 
 
+_STALE_AFTER_S: dict[str, float | None] = {"perception/user": 5.0}
+_USER_INITIATIVE: dict[Literal["high", "moderate", "low", "unknown"], float] = {
+    "high": 0.8,
+    "moderate": 0.5,
+    "unknown": 0.5,
+    "low": 0.2,
+}
+
+
 class InputSettings(_Section):
-    stale_after_s: dict[str, float | None] = Field(
-        default_factory=lambda: {"perception/user": 5.0}
-    )
+    stale_after_s: dict[str, float | None] = Field(default_factory=lambda: _STALE_AFTER_S.copy())
 
     @field_validator("stale_after_s")
     @classmethod
@@ -56,7 +63,7 @@ class ControllerSettings(_Section):
     question_every: int = Field(3, ge=0)
     """Then one more general question every N activities (0: never)."""
     user_initiative: dict[Literal["high", "moderate", "low", "unknown"], float] = Field(
-        default_factory=lambda: {"high": 0.8, "moderate": 0.5, "unknown": 0.5, "low": 0.2}
+        default_factory=lambda: _USER_INITIATIVE.copy()
     )
     """Probability that the user takes the initiative, by proactivity."""
     ack_timeout_s: float = Field(10.0, gt=0.0)

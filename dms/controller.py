@@ -265,7 +265,9 @@ class Controller:
                 self._on_touch(message, now)
             elif isinstance(message, Speech):
                 if message.confidence < self.settings.min_speech_confidence:
-                    log.info("not understood (confidence %.2f): %r", message.confidence, message.text)
+                    log.info(
+                        "not understood (confidence %.2f): %r", message.confidence, message.text
+                    )
                     continue
                 self._on_answer(message.text, "voice", message, now)
             elif isinstance(message, ScreenChoice):
@@ -282,17 +284,29 @@ class Controller:
                 self._requests.append(("", "user", f"cancel requested by {by}"))
         elif request.action == "pause" and self.current is not None and not self.current.paused:
             self._pause(self.current, "user_request", now, f"requested by {by}")
-        elif request.action == "resume" and self.current is not None and self.current.paused:
-            if self.dialog is None:
-                self._resume(self.current, "user_request", now, f"requested by {by}")
+        elif (
+            request.action == "resume"
+            and self.current is not None
+            and self.current.paused
+            and self.dialog is None
+        ):
+            self._resume(self.current, "user_request", now, f"requested by {by}")
 
     def _on_touch(self, touch: Touch, now: datetime) -> None:
         running = self.current
-        if touch.part == "right_shoulder" and running is not None and self.dialog is None:
-            if running.chosen_by != "motivation" and not running.paused and running.name != "notification":
-                self._pause(running, "confirm_cancel", now, "right shoulder touched")
-                self._open_dialog(confirm_dialog(running.name, now, self.settings.confirm_timeout_s), now)
-                return
+        if (
+            touch.part == "right_shoulder"
+            and running is not None
+            and self.dialog is None
+            and running.chosen_by != "motivation"
+            and not running.paused
+            and running.name != "notification"
+        ):
+            self._pause(running, "confirm_cancel", now, "right shoulder touched")
+            self._open_dialog(
+                confirm_dialog(running.name, now, self.settings.confirm_timeout_s), now
+            )
+            return
         if running is not None:
             self.managers[running.manager].deliver(touch)
 
@@ -307,7 +321,11 @@ class Controller:
         if running is not None and self.managers[running.manager].deliver(event):
             return
         wanted = match_activity(text)
-        if wanted is not None and wanted in ACTIVITIES and (running is None or wanted != running.name):
+        if (
+            wanted is not None
+            and wanted in ACTIVITIES
+            and (running is None or wanted != running.name)
+        ):
             self._requests.append((wanted, "user", f"asked by {channel}: {text[:60]!r}"))
             self._note_initiative(True, now)
 
@@ -369,7 +387,9 @@ class Controller:
         ready = self._ready_user()
         session = self._session
         if session is not None and self._user_gone(session.user_id):
-            missing = self._snapshot is not None and keys.PERCEPTION_USER not in self._snapshot.values
+            missing = (
+                self._snapshot is not None and keys.PERCEPTION_USER not in self._snapshot.values
+            )
             reason: Reason = "input_missing" if missing else "user_left"
             for running in (self.current, self.suspended):
                 if running is not None and running.user_id == session.user_id:
@@ -434,7 +454,7 @@ class Controller:
         result = self._rule("ChooseMode")
         if result is not None and result.activate and result.activate[0] in RULE_MODES:
             chosen = result.activate[0]
-            mode: Mode = chosen  # type: ignore[assignment]
+            mode: Mode = chosen
             return mode, RULE_MODES[chosen], f"rule ChooseMode -> {chosen}"
         proactivity = str(getattr(profile, "proactivity", None) or "unknown")
         p_user = self.settings.user_initiative.get(proactivity, 0.5)  # type: ignore[call-overload]
@@ -505,7 +525,9 @@ class Controller:
             self._decide("fail", name, "activity_error", chosen_by, reply.detail, now)
             return False
         user_id = self._session.user_id if self._session else None
-        self.current = Running(name, manager, chosen_by, reason, now, user_id, agenda_item=agenda_item)
+        self.current = Running(
+            name, manager, chosen_by, reason, now, user_id, agenda_item=agenda_item
+        )
         self._decide("start", name, reason, chosen_by, detail, now)
         return True
 
@@ -538,10 +560,14 @@ class Controller:
         self.current = None
         if reply.status is ManagerStatus.FAILED:
             self.counters.activity_failures += 1
-            self._decide("fail", running.name, "activity_error", running.chosen_by, reply.detail, now)
+            self._decide(
+                "fail", running.name, "activity_error", running.chosen_by, reply.detail, now
+            )
             self._finish_user_activity(running, "failed", now, ask_feedback=False)
         elif reply.status is ManagerStatus.COMPLETED:
-            self._decide("complete", running.name, "completed", running.chosen_by, reply.detail, now)
+            self._decide(
+                "complete", running.name, "completed", running.chosen_by, reply.detail, now
+            )
             self._finish_user_activity(running, "completed", now, ask_feedback=not reply.redirect)
             if reply.redirect:
                 self._follow_redirect(running, reply.redirect, now)
@@ -554,13 +580,22 @@ class Controller:
 
     def _follow_redirect(self, running: Running, target: str, now: datetime) -> None:
         if target not in ACTIVITIES:
-            self._decide("fail", running.name, "activity_error", running.chosen_by, f"redirect to unknown {target!r}", now)
+            self._decide(
+                "fail",
+                running.name,
+                "activity_error",
+                running.chosen_by,
+                f"redirect to unknown {target!r}",
+                now,
+            )
             return
         if running.name == "menu":
             self._note_initiative(True, now)
             self._start(target, "user_choice", "user", now, "chosen from the menu")
         else:
-            self._start(target, "activity_redirect", running.chosen_by, now, f"asked for by {running.name}")
+            self._start(
+                target, "activity_redirect", running.chosen_by, now, f"asked for by {running.name}"
+            )
 
     def _finish_user_activity(
         self, running: Running, outcome: str, now: datetime, ask_feedback: bool
@@ -584,7 +619,9 @@ class Controller:
         session.activities_done += 1
         session.last_activity = running.name
         if ask_feedback and self.rng.random() < self.settings.feedback_probability:
-            self._open_dialog(feedback_dialog(running.name, now, self.settings.question_timeout_s), now)
+            self._open_dialog(
+                feedback_dialog(running.name, now, self.settings.question_timeout_s), now
+            )
 
     # ------------------------------------------------------------------ step 2: cancel reasons
 
@@ -600,7 +637,12 @@ class Controller:
                 return
             wanted = self._motivated_behavior()
             if wanted != running.name and self._interruption_allowed(running):
-                self._cancel(running, "motivation_changed", now, f"now {self._dominant() or 'none'} dominates")
+                self._cancel(
+                    running,
+                    "motivation_changed",
+                    now,
+                    f"now {self._dominant() or 'none'} dominates",
+                )
                 self.current = None
                 return
         # (b) the user asked to change
@@ -629,7 +671,11 @@ class Controller:
                     self.current = None
                     self._run_agenda_item(item, now)
                 return
-            if item.kind == "event" and item.priority == "high" and self._interruption_allowed(running):
+            if (
+                item.kind == "event"
+                and item.priority == "high"
+                and self._interruption_allowed(running)
+            ):
                 self._cancel(running, "agenda", now, f"event {item.item_id} ({item.activity})")
                 self._finish_user_activity(running, "cancelled", now, ask_feedback=False)
                 self.current = None
@@ -652,7 +698,9 @@ class Controller:
                     self._start(target, "user_request", chosen_by, now, detail)
                 return
             behavior = self._motivated_behavior()
-            self._start(behavior, "motivation", "motivation", now, f"dominant: {self._dominant() or 'none'}")
+            self._start(
+                behavior, "motivation", "motivation", now, f"dominant: {self._dominant() or 'none'}"
+            )
             return
         if self._requests:
             target, chosen_by, detail = self._requests.pop(0)
@@ -672,7 +720,11 @@ class Controller:
     def _robot_choice(self, session: _Session, now: datetime) -> None:
         exclude = {session.last_activity} if session.last_activity else set()
         result = self._rule("ChooseEntertainment")
-        if result is not None and result.activate and result.activate[0] in ENTERTAINMENT_ACTIVITIES:
+        if (
+            result is not None
+            and result.activate
+            and result.activate[0] in ENTERTAINMENT_ACTIVITIES
+        ):
             name = result.activate[0]
             self._start(name, "preference", "robot", now, f"rule ChooseEntertainment -> {name}")
             return
@@ -746,12 +798,22 @@ class Controller:
     def _run_agenda_item(self, item: DueItem, now: datetime) -> None:
         if item.kind == "reminder":
             started = self._start(
-                "notification", "agenda", "agenda", now, f"reminder {item.item_id}",
-                args={"text": item.text or ""}, agenda_item=item,
+                "notification",
+                "agenda",
+                "agenda",
+                now,
+                f"reminder {item.item_id}",
+                args={"text": item.text or ""},
+                agenda_item=item,
             )
         else:
             started = self._start(
-                item.activity or "wait", "agenda", "agenda", now, f"event {item.item_id}", agenda_item=item
+                item.activity or "wait",
+                "agenda",
+                "agenda",
+                now,
+                f"event {item.item_id}",
+                agenda_item=item,
             )
         if self.deps.agenda is not None:
             # Delivered once started (or failed to start): an item never runs twice.
@@ -802,7 +864,7 @@ class Controller:
                 action=action,
                 activity=activity,
                 manager=manager_of(activity).value if activity in ACTIVITIES else None,
-                reason=reason,  # type: ignore[arg-type]
+                reason=reason,
                 chosen_by=chosen_by,
                 detail=detail,
             )

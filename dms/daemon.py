@@ -14,9 +14,7 @@ import random
 import signal
 import sys
 import threading
-import time
 from collections.abc import Callable
-from datetime import datetime
 from types import FrameType
 from typing import Any
 
@@ -60,9 +58,7 @@ class Daemon:
         self.print_decisions = print_decisions
         self.bus = bus or ZenohBus(
             settings.robot_id,
-            make_config(
-                settings.zenoh.listen, settings.zenoh.connect, settings.zenoh.config_file
-            ),
+            make_config(settings.zenoh.listen, settings.zenoh.connect, settings.zenoh.config_file),
         )
         self.ticker = Ticker(self.clock, settings.controller.tick_period_s)
         self._lock = threading.Lock()
@@ -152,8 +148,10 @@ class Daemon:
             activity = controller.running_activity
             if activity is None:
                 return True, {"activity": None}
-            return True, {"activity": controller.current.name if controller.current else None,
-                          "structure": activity.structure()}
+            return True, {
+                "activity": controller.current.name if controller.current else None,
+                "structure": activity.structure(),
+            }
 
     # -------------------------------------------------------------- the loop
 
@@ -229,9 +227,7 @@ class Daemon:
                 self.bus.close()
 
 
-def run_daemon(
-    settings: Settings, visitor: str | None = None, print_decisions: bool = True
-) -> int:
+def run_daemon(settings: Settings, visitor: str | None = None, print_decisions: bool = True) -> int:
     """Run until SIGINT/SIGTERM; return the exit code."""
     logging.basicConfig(
         level=logging.WARNING, format="%(asctime)s %(levelname)s %(name)s: %(message)s"
@@ -266,4 +262,3 @@ def run_daemon(
             stop_visitor()
         daemon.close()
     return 0
-

@@ -36,7 +36,7 @@ class ZenohRobot:
         self._publish(
             RobotCommand(
                 id=f"interrupt-{next(_interrupts)}",
-                channel=channel,  # type: ignore[arg-type]
+                channel=channel,
                 action="interrupt",
                 args={"target": command_id},
             )

@@ -84,7 +84,11 @@ class Manager:
         self, status: ManagerStatus, detail: str | None = None, redirect: str | None = None
     ) -> ManagerReply:
         activity = self._activity
-        data = dict(activity.result.data) if activity is not None and status in _FINAL.values() else None
+        data = (
+            dict(activity.result.data)
+            if activity is not None and status in _FINAL.values()
+            else None
+        )
         return ManagerReply(
             manager=self.name,
             activity=self._activity_name,
@@ -128,7 +132,9 @@ class Manager:
         if status in _FINAL:
             result = activity.result
             return self._finish(_FINAL[status], detail=result.error, redirect=result.redirect)
-        return self._reply(ManagerStatus.PAUSED if status is ActivityStatus.PAUSED else ManagerStatus.RUNNING)
+        return self._reply(
+            ManagerStatus.PAUSED if status is ActivityStatus.PAUSED else ManagerStatus.RUNNING
+        )
 
     def _finish(
         self, status: ManagerStatus, detail: str | None = None, redirect: str | None = None

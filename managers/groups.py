@@ -23,7 +23,10 @@ class EntertainmentManager(Manager):
     name = ManagerName.ENTERTAINMENT
 
     def choose(
-        self, rng: random.Random, chooser: EntertainmentChooser | None, exclude: Collection[str] = ()
+        self,
+        rng: random.Random,
+        chooser: EntertainmentChooser | None,
+        exclude: Collection[str] = (),
     ) -> str:
         if chooser is not None:
             return chooser(rng, exclude)

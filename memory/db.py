@@ -27,7 +27,9 @@ def default_url() -> str:
 
 def as_url(value: str) -> str:
     """A database URL from ``--db``: a URL as is, a plain file path as a SQLite file."""
-    looks_like_file = "/" in value or value.startswith("~") or value.endswith((".db", ".sqlite", ".sqlite3"))
+    looks_like_file = (
+        "/" in value or value.startswith("~") or value.endswith((".db", ".sqlite", ".sqlite3"))
+    )
     if "://" in value or not looks_like_file:
         return value
     return f"sqlite:///{Path(value).expanduser().absolute()}"

@@ -12,6 +12,7 @@ real clock: this is what ``make run`` shows.
 
 from __future__ import annotations
 
+import contextlib
 import random
 import sys
 import threading
@@ -133,10 +134,8 @@ def start_visitor(persona_name: str, settings: Settings) -> Callable[[], None]:
     client = ZenohClient(settings.robot_id, make_config(connect=settings.zenoh.listen))
 
     def echo(line: str) -> None:
-        try:
+        with contextlib.suppress(OSError, ValueError):  # a closed console never stops the visitor
             print(line, file=sys.stderr, flush=True)
-        except (OSError, ValueError):
-            pass  # a closed console never stops the visitor
 
     visitor = Visitor(persona, client, RealClock(), random.Random(settings.seed), echo)
     thread = threading.Thread(target=visitor.run, name=f"visitor-{persona.name}", daemon=True)

@@ -27,7 +27,7 @@ def _run(*args: str) -> tuple[int, str, BaseException | None]:
 
 @pytest.fixture
 def db(db_url: str) -> list[str]:
-    """The database of a profile store where "ann" and "bob" exist (the CLI refuses unknown users)."""
+    """A profile store where "ann" and "bob" exist: the CLI refuses unknown users."""
     store = ProfileStore(db_url)
     for user in ("ann", "bob"):
         store.get_or_create(user, datetime.now(UTC))

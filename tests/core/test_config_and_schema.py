@@ -56,8 +56,15 @@ def test_every_message_gets_a_json_schema(tmp_path: Path) -> None:
     paths = write_schemas(tmp_path)
     assert len(paths) == len(SCHEMAS)
     state = json.loads((tmp_path / "dms_state.schema.json").read_text())
-    assert {"robot", "tick", "time", "mode", "activity", "suspended", "motivation", "inputs"} <= set(
-        state["properties"]
-    )
+    assert {
+        "robot",
+        "tick",
+        "time",
+        "mode",
+        "activity",
+        "suspended",
+        "motivation",
+        "inputs",
+    } <= set(state["properties"])
     params = json.loads((tmp_path / "params.schema.json").read_text())
     assert params["type"] == "object"

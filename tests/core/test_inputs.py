@@ -39,7 +39,11 @@ MALFORMED: list[tuple[str, bytes, str]] = [
     (keys.REQUEST, b'{"action": "start", "activity": "karaoke"}', "unknown activity"),
     (keys.REQUEST, b'{"action": "explode"}', "action"),
     (keys.ROBOT_FEEDBACK, b'{"id": "c1", "status": "exploded"}', "status"),
-    (keys.PERCEPTION_SPEECH, json.dumps({"text": "a" * MAX_PAYLOAD_BYTES, "confidence": 1}).encode(), "exceeds"),
+    (
+        keys.PERCEPTION_SPEECH,
+        json.dumps({"text": "a" * MAX_PAYLOAD_BYTES, "confidence": 1}).encode(),
+        "exceeds",
+    ),
     (keys.PERCEPTION_USER, b"\xff\xfe", "not JSON"),
     (keys.PARAMS_ENV, b'{"x": NaN}', ""),
 ]

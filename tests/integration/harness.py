@@ -112,8 +112,16 @@ class DaemonProcess:
         self._log_file = self.log.open("w")
         self.proc = subprocess.Popen(
             [
-                sys.executable, "-m", "dms.cli", "run", "--config", str(self.config),
-                "--db", self.db, "--listen", f"tcp/127.0.0.1:{self.port}",
+                sys.executable,
+                "-m",
+                "dms.cli",
+                "run",
+                "--config",
+                str(self.config),
+                "--db",
+                self.db,
+                "--listen",
+                f"tcp/127.0.0.1:{self.port}",
             ],
             stdout=self._log_file,
             stderr=subprocess.STDOUT,
@@ -140,7 +148,9 @@ class DaemonProcess:
 
 
 @contextmanager
-def running_daemon(tmp: Path, extra_config: str = "") -> Iterator[tuple[DaemonProcess, zenoh.Session]]:
+def running_daemon(
+    tmp: Path, extra_config: str = ""
+) -> Iterator[tuple[DaemonProcess, zenoh.Session]]:
     daemon = DaemonProcess(tmp, extra_config=extra_config)
     session = client_session(daemon.port)
     try:
@@ -156,7 +166,9 @@ def put(session: zenoh.Session, key: str, payload: dict[str, Any] | bytes) -> No
     session.put(f"robots/mini/{key}", data, encoding=zenoh.Encoding.APPLICATION_JSON)
 
 
-def query(session: zenoh.Session, key: str, payload: dict[str, Any] | None = None) -> list[tuple[bool, Any]]:
+def query(
+    session: zenoh.Session, key: str, payload: dict[str, Any] | None = None
+) -> list[tuple[bool, Any]]:
     replies = session.get(
         f"robots/mini/{key}",
         payload=json.dumps(payload).encode() if payload is not None else None,

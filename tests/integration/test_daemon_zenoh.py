@@ -5,6 +5,7 @@ The test's session acts as perception and as a caregiver's app, on 127.0.0.1 onl
 
 from __future__ import annotations
 
+import itertools
 import threading
 from datetime import datetime
 from pathlib import Path
@@ -37,7 +38,7 @@ def test_state_at_2hz_and_contract_shape(tmp_path: Path) -> None:
         got = states.wait_count(7, timeout=10)[-6:]
         ticks = [m["tick"] for m in got]
         assert ticks == sorted(ticks)
-        spans = [_ts(b) - _ts(a) for a, b in zip(got, got[1:], strict=False)]
+        spans = [_ts(b) - _ts(a) for a, b in itertools.pairwise(got)]
         assert all(0.3 <= s <= 0.7 for s in spans), spans
         state = got[-1]
         assert state["robot"] == "mini" and state["mode"] == "motivation"
@@ -72,8 +73,12 @@ def test_shoulder_touch_asks_then_stop_cancels_and_continue_resumes(tmp_path: Pa
         # continue: the quiz resumes
         mark = decisions.mark()
         put(session, "perception/touch", {"part": "right_shoulder", "kind": "tap"})
-        decisions.wait_for(lambda d: d["action"] == "pause" and d["reason"] == "confirm_cancel", start=mark)
-        decisions.wait_for(lambda d: d["action"] == "ask" and d["reason"] == "confirm_cancel", start=mark)
+        decisions.wait_for(
+            lambda d: d["action"] == "pause" and d["reason"] == "confirm_cancel", start=mark
+        )
+        decisions.wait_for(
+            lambda d: d["action"] == "ask" and d["reason"] == "confirm_cancel", start=mark
+        )
         commands.wait_for(lambda c: c["channel"] == "speech" and "stop" in str(c["args"]).lower())
         put(session, "perception/speech", {"text": "continue", "confidence": 0.9})
         resumed = decisions.wait_for(lambda d: d["action"] == "resume", start=mark)
@@ -99,14 +104,25 @@ def test_a_reminder_pauses_the_activity_speaks_and_resumes_it(tmp_path: Path) ->
         replies = query(
             session,
             "agenda/ann",
-            {"op": "add", "user_id": "ann", "kind": "reminder", "text": "Time for your pills", "at": at, "tz": "UTC"},
+            {
+                "op": "add",
+                "user_id": "ann",
+                "kind": "reminder",
+                "text": "Time for your pills",
+                "at": at,
+                "tz": "UTC",
+            },
         )
         assert replies and replies[0][0], replies
-        paused = decisions.wait_for(lambda d: d["action"] == "pause" and d["reason"] == "agenda", timeout=15)
+        paused = decisions.wait_for(
+            lambda d: d["action"] == "pause" and d["reason"] == "agenda", timeout=15
+        )
         assert paused["activity"] == "quiz"
         decisions.wait_for(lambda d: d["action"] == "start" and d["activity"] == "notification")
         states.wait_for(lambda s: (s["suspended"] or {}).get("name") == "quiz")
-        resumed = decisions.wait_for(lambda d: d["action"] == "resume" and d["activity"] == "quiz", timeout=30)
+        resumed = decisions.wait_for(
+            lambda d: d["action"] == "resume" and d["activity"] == "quiz", timeout=30
+        )
         assert resumed["reason"] == "agenda"
 
 
@@ -117,7 +133,9 @@ def test_a_perception_module_whose_token_disappears_is_missing(tmp_path: Path) -
         try:
             token = perception.liveliness().declare_token("robots/mini/alive/perception/user")
             put(perception, "perception/user", ANN_READY)
-            states.wait_for(lambda s: s["inputs"].get("perception/user") == "ok" and s["user"] is not None)
+            states.wait_for(
+                lambda s: s["inputs"].get("perception/user") == "ok" and s["user"] is not None
+            )
             token.undeclare()
             gone = states.wait_for(lambda s: s["inputs"].get("perception/user") == "missing")
             assert gone["user"] is None
@@ -152,8 +170,10 @@ def test_malformed_payloads_are_reported_and_change_nothing(tmp_path: Path) -> N
         assert all(r["error"] and r["time"].endswith("Z") for r in reports)
         mark = states.mark()
         after = states.wait_count(mark + 4)[-4:]
-        assert all(s["user"] is None and s["activity"]["name"] == before["activity"]["name"] for s in after)
-        spans = [_ts(b) - _ts(a) for a, b in zip(after, after[1:], strict=False)]
+        assert all(
+            s["user"] is None and s["activity"]["name"] == before["activity"]["name"] for s in after
+        )
+        spans = [_ts(b) - _ts(a) for a, b in itertools.pairwise(after)]
         assert all(0.3 <= s <= 0.7 for s in spans), spans
 
 
@@ -187,7 +207,11 @@ def test_a_restart_keeps_profiles(tmp_path: Path) -> None:
     try:
         port_daemon.start(session)
         states = Collector(session, "robots/mini/dms/state")
-        put(session, "perception/user", {"present": True, "user_id": "bob", "ready": True, "engagement": None})
+        put(
+            session,
+            "perception/user",
+            {"present": True, "user_id": "bob", "ready": True, "engagement": None},
+        )
         states.wait_for(lambda s: (s["user"] or {}).get("id") == "bob")
         gone = threading.Event()
         sub = session.liveliness().declare_subscriber(
