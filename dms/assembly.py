@@ -118,7 +118,10 @@ def build_stack(
             store.close()
             raise ConfigError(f"agenda {url}: {error}") from None
     expression = ExpressionArbiter(
-        robot, on_command, ack_timeout_s=settings.controller.ack_timeout_s
+        robot,
+        on_command,
+        ack_timeout_s=settings.controller.ack_timeout_s,
+        done_timeout_s=settings.controller.done_timeout_s,
     )
     inputs = InputBoard(settings.inputs.stale_after_s)
     deps = ControllerDeps(

@@ -68,6 +68,8 @@ class ControllerSettings(_Section):
     """Probability that the user takes the initiative, by proactivity."""
     ack_timeout_s: float = Field(10.0, gt=0.0)
     """A robot command not acknowledged within this fails its activity."""
+    done_timeout_s: float = Field(120.0, gt=0.0)
+    """A robot command started but not done within this (plus a media's length) fails it."""
     min_speech_confidence: float = Field(0.5, ge=0.0, le=1.0)
     """An utterance recognized with less confidence is not understood (the question waits)."""
 

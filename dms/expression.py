@@ -9,8 +9,10 @@ the controller's "continue or stop?") preempts a NORMAL one on its channel; the
 interrupted command goes back to the head of the queue and is sent again, from the
 start, once the channel is free (when the interrupted source resumes).
 
-A command the robot never acknowledges is timed out after ``ack_timeout_s``: its handle
-ends ``timed_out`` and the activity that issued it fails cleanly.
+A command the robot never acknowledges is timed out after ``ack_timeout_s``, and one it
+started but never finished after ``done_timeout_s`` (plus the ``duration_s`` of media
+that says how long it lasts): its handle ends ``timed_out`` and the activity that issued
+it fails cleanly.
 """
 
 from __future__ import annotations
@@ -51,7 +53,7 @@ class CommandStatus(StrEnum):
     FAILED = "failed"
     """The robot reported it could not execute it."""
     TIMED_OUT = "timed_out"
-    """The robot never acknowledged it within the acknowledgement timeout."""
+    """The robot never acknowledged it, or never finished it, in time."""
 
 
 FINAL_STATUSES = frozenset(
@@ -72,6 +74,7 @@ class CommandHandle:
     command_id: str | None = None
     """The id of the last send (a repeated command gets a new id)."""
     sent_at: datetime | None = None
+    started_at: datetime | None = None
     sends: int = 0
     detail: str | None = None
     order: int = 0
@@ -100,10 +103,12 @@ class ExpressionArbiter:
         robot: RobotPort,
         on_command: Callable[[RobotCommand], None],
         ack_timeout_s: float = 10.0,
+        done_timeout_s: float = 120.0,
     ) -> None:
         self.robot = robot
         self.on_command = on_command
         self.ack_timeout = timedelta(seconds=ack_timeout_s)
+        self.done_timeout = timedelta(seconds=done_timeout_s)
         self._channels: dict[str, _Channel] = {}
         self._by_id: dict[str, CommandHandle] = {}
         self._ids = itertools.count(1)
@@ -190,6 +195,7 @@ class ExpressionArbiter:
                 continue
             if feedback.status == "started":
                 handle.status = CommandStatus.STARTED
+                handle.started_at = now
                 continue
             self._by_id.pop(feedback.id, None)
             handle.detail = feedback.detail
@@ -201,21 +207,32 @@ class ExpressionArbiter:
             self._release(handle, now)
         for lane in self._channels.values():
             active = lane.active
-            if (
-                active is not None
-                and active.status is CommandStatus.SENT
-                and active.sent_at is not None
-                and now - active.sent_at >= self.ack_timeout
-            ):
+            if active is None:
+                continue
+            overdue = self._overdue(active, now)
+            if overdue is not None:
                 self.timeouts += 1
                 active.status = CommandStatus.TIMED_OUT
-                active.detail = f"not acknowledged within {self.ack_timeout.total_seconds():g} s"
+                active.detail = overdue
                 if active.command_id is not None:
                     self._by_id.pop(active.command_id, None)
                     self.robot.interrupt(active.command_id, now)
                 lane.active = None
         for lane in self._channels.values():
             self._dispatch(lane, now)
+
+    def _overdue(self, active: CommandHandle, now: datetime) -> str | None:
+        """Why ``active`` has waited too long for the robot, or None."""
+        if active.status is CommandStatus.SENT and active.sent_at is not None:
+            if now - active.sent_at >= self.ack_timeout:
+                return f"not acknowledged within {self.ack_timeout.total_seconds():g} s"
+        elif active.status is CommandStatus.STARTED and active.started_at is not None:
+            length = active.args.get("duration_s")
+            extra = float(length) if isinstance(length, int | float) and length > 0 else 0.0
+            limit = self.done_timeout + timedelta(seconds=extra)
+            if now - active.started_at >= limit:
+                return f"started but not done within {limit.total_seconds():g} s"
+        return None
 
     def _release(self, handle: CommandHandle, now: datetime) -> None:
         lane = self._channels.get(handle.channel)

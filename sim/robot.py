@@ -17,7 +17,7 @@ from typing import Literal
 
 from dms.messages import RobotCommand, RobotFeedback
 
-Fault = Literal["fail", "hang"]
+Fault = Literal["fail", "hang", "stall"]
 
 MOTION_SECONDS: dict[str, float] = {
     "nod": 1.5,
@@ -66,8 +66,9 @@ class SimRobot:
     # ------------------------------------------------------------ faults
 
     def set_fault(self, channel: str, fault: Fault | None) -> None:
-        """From now on, ``channel``'s commands fail (``fail``) or are never acknowledged
-        (``hang``); ``None`` heals it. ``channel="*"`` applies to every channel."""
+        """From now on, ``channel``'s commands fail (``fail``), are never acknowledged
+        (``hang``) or start and never finish (``stall``); ``None`` heals it.
+        ``channel="*"`` applies to every channel."""
         if fault is None:
             self._faults.pop(channel, None)
         else:
@@ -100,6 +101,8 @@ class SimRobot:
         self._emit(now, command.id, "started")
         if fault == "fail":
             self._emit(now, command.id, "failed", "simulated fault")
+            return
+        if fault == "stall":
             return
         if command.channel == "screen":
             self.screen = {"action": command.action, **command.args}

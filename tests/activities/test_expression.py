@@ -95,6 +95,31 @@ def test_a_command_never_acknowledged_times_out() -> None:
     assert ok.status is CommandStatus.DONE
 
 
+def test_a_command_started_but_never_done_times_out_after_its_length() -> None:
+    robot = SimRobot()
+    arbiter = ExpressionArbiter(robot, lambda _c: None, ack_timeout_s=3.0, done_timeout_s=20.0)
+    robot.set_fault("media", "stall")
+    song = arbiter.request("a", "media", "play", {"file": "x.mp3", "duration_s": 30}, T0)
+    _run(arbiter, 1)
+    assert song.status is CommandStatus.STARTED
+    _run(arbiter, 49)
+    assert song.status is CommandStatus.STARTED  # 30 s of song plus 20 s of grace
+    _run(arbiter, 51)
+    assert song.status is CommandStatus.TIMED_OUT and "not done within 50 s" in (song.detail or "")
+    assert arbiter.timeouts == 1 and robot.log[-1][1].action == "play"
+
+
+def test_a_gesture_started_but_never_done_times_out() -> None:
+    robot = SimRobot()
+    arbiter = ExpressionArbiter(robot, lambda _c: None, ack_timeout_s=3.0, done_timeout_s=20.0)
+    robot.set_fault("motion", "stall")
+    wave = arbiter.request("a", "motion", "gesture", {"name": "wave"}, T0)
+    _run(arbiter, 19.5)
+    assert wave.status is CommandStatus.STARTED
+    _run(arbiter, 21)
+    assert wave.status is CommandStatus.TIMED_OUT and arbiter.timeouts == 1
+
+
 def test_an_activity_fails_cleanly_when_the_robot_never_answers(shipped: BehaviorLibrary) -> None:
     bench = Bench(shipped)
     bench.robot.set_fault("speech", "hang")
