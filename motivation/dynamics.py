@@ -41,6 +41,37 @@ def integrals(a: FloatArray | float, b: float, peak_s: float, times: FloatArray)
     return np.asarray(a * np.diff(times) + (b / OMEGA) * np.diff(wave), dtype=np.float64)
 
 
+def signed(change: float, a: float, b: float, peak_s: float, t0: float, t1: float) -> float:
+    """A change over [t0, t1], where the rate keeps one sign, given that sign.
+
+    The sine of a wall-clock time (about 1e5 radians) carries rounding of about 1e-11, so
+    a change near a zero of the rate can come out with the wrong sign; a drive with
+    nothing satisfying it must never fall, not even by 1e-12.
+    """
+    if a >= b:
+        return max(change, 0.0)
+    if a <= -b:
+        return min(change, 0.0)
+    rising = a + b * math.cos(OMEGA * (0.5 * (t0 + t1) - peak_s)) >= 0.0
+    return max(change, 0.0) if rising else min(change, 0.0)
+
+
+def signed_integrals(a: float, b: float, peak_s: float, times: FloatArray) -> FloatArray:
+    """``integrals`` with each change given the sign of the rate inside its interval.
+
+    The same rule as ``signed``; an interval where the rate changes sign must be split
+    first (``pieces``), its value here is meaningless.
+    """
+    changes = integrals(a, b, peak_s, times)
+    if a >= b:
+        return np.maximum(changes, 0.0)
+    if a <= -b:
+        return np.minimum(changes, 0.0)
+    middle = 0.5 * (times[:-1] + times[1:])
+    rising = a + b * np.cos(OMEGA * (middle - peak_s)) >= 0.0
+    return np.where(rising, np.maximum(changes, 0.0), np.minimum(changes, 0.0))
+
+
 def sign_changes(a: float, b: float, peak_s: float, t0: float, t1: float) -> list[float]:
     """The times strictly inside (t0, t1) where a + b*cos(omega*(t - peak)) is zero, sorted."""
     if b <= 0.0 or abs(a) >= b or t1 <= t0:
@@ -61,7 +92,10 @@ def sign_changes(a: float, b: float, peak_s: float, t0: float, t1: float) -> lis
 def pieces(a: float, b: float, peak_s: float, t0: float, t1: float) -> list[float]:
     """The changes over [t0, t1] split where the drive turns, each one-signed."""
     cuts = [t0, *sign_changes(a, b, peak_s, t0, t1), t1]
-    return [integral(a, b, peak_s, u0, u1) for u0, u1 in itertools.pairwise(cuts)]
+    return [
+        signed(integral(a, b, peak_s, u0, u1), a, b, peak_s, u0, u1)
+        for u0, u1 in itertools.pairwise(cuts)
+    ]
 
 
 def apply(drive: float, change: float) -> float:

@@ -250,7 +250,10 @@ class MotivationModel:
     def wellbeing(self, drives: FloatArray) -> float:
         """``100 - sum(omega_i * D_i) / sum(omega_i)`` (100 when no drive has a weight)."""
         total = float(self.table.omega.sum())
-        return 100.0 if total == 0 else 100.0 - float(self.table.omega @ drives) / total
+        if total == 0:
+            return 100.0
+        # clipped: with every drive at 100 the rounding of the mean can leave -1e-14
+        return min(100.0, max(0.0, 100.0 - float(self.table.omega @ drives) / total))
 
     def snapshot(self, state: MotivationState) -> dict[str, object]:
         """The ``motivation`` field of DmsState."""

@@ -18,7 +18,14 @@ from datetime import datetime, timedelta
 import numpy as np
 from numpy.typing import NDArray
 
-from motivation.dynamics import OMEGA, TWO_PI, FloatArray, clipped_walk, integrals, pieces
+from motivation.dynamics import (
+    OMEGA,
+    TWO_PI,
+    FloatArray,
+    clipped_walk,
+    pieces,
+    signed_integrals,
+)
 from motivation.model import NO_DOMINANT, MotivationModel, MotivationState, local_seconds
 from motivation.stimuli import Stimuli
 
@@ -60,7 +67,7 @@ def _turning_intervals(a: float, b: float, peak_s: float, times: FloatArray) -> 
 
 def drive_path(drive: float, a: float, b: float, peak_s: float, times: FloatArray) -> FloatArray:
     """The drive at ``times[1:]`` from ``drive`` at ``times[0]``, exactly (see module doc)."""
-    changes = integrals(a, b, peak_s, times)
+    changes = signed_integrals(a, b, peak_s, times)
     turning = _turning_intervals(a, b, peak_s, times)
     if turning.size == 0:
         return clipped_walk(drive, changes)
@@ -259,6 +266,9 @@ def _run(
     )
     omega = model.table.omega
     total = float(omega.sum())
-    wellbeing = 100.0 - (drives @ omega) / total if total else np.full(len(drives), 100.0)
+    if total:
+        wellbeing = np.clip(100.0 - (drives @ omega) / total, 0.0, 100.0)
+    else:
+        wellbeing = np.full(len(drives), 100.0)
     motivations = motivations_of(model, drives, final.levels, dominant)
     return Run(final, end, seconds, drives, motivations, dominant, wellbeing, ticks, switches)
