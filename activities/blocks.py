@@ -182,29 +182,36 @@ def type_ok(value: Any, spec: Param) -> bool:
 VOLUMES = {"quiet": 40, "soft": 40, "normal": 60, "loud": 80, "very_loud": 95}
 
 
-def voice_volume(rt: Runtime) -> int | None:
-    """The ``VoiceSettings`` rule's volume: ``volume:NN``, ``quiet``, ``normal`` or ``loud``."""
+def voice_settings(rt: Runtime) -> dict[str, int]:
+    """The ``VoiceSettings`` rule's ``volume`` (``volume:NN``, ``quiet``, ``normal``,
+    ``loud``) and ``rate_wpm`` (``rate:WPM``), for the robot's speech; empty without it."""
     rules = rt.ctx.rules
     if rules is None:
-        return None
+        return {}
     result = rules.evaluate("VoiceSettings", rt.ctx.params())
     if result is None:
-        return None
+        return {}
+    settings: dict[str, int] = {}
     for activation in result.activate:
         name = str(activation).strip().lower()
         if name in VOLUMES:
-            return VOLUMES[name]
-        match = re.fullmatch(r"volume[:=\s]*(\d{1,3})", name)
-        if match:
-            return min(100, int(match.group(1)))
-    return None
+            settings.setdefault("volume", VOLUMES[name])
+        elif match := re.fullmatch(r"volume[:=\s]*(\d{1,3})", name):
+            settings.setdefault("volume", min(100, int(match.group(1))))
+        elif match := re.fullmatch(r"rate[:=\s]*(\d{2,3})", name):
+            settings.setdefault("rate_wpm", min(400, max(40, int(match.group(1)))))
+    return settings
+
+
+def voice_volume(rt: Runtime) -> int | None:
+    """The volume the ``VoiceSettings`` rule asks for, if any."""
+    return voice_settings(rt).get("volume")
 
 
 def speech_args(rt: Runtime, text: str, volume: float | None) -> dict[str, Any]:
-    args: dict[str, Any] = {"text": text}
-    level = int(volume) if volume is not None else voice_volume(rt)
-    if level is not None:
-        args["volume"] = level
+    args: dict[str, Any] = {"text": text, **voice_settings(rt)}
+    if volume is not None:
+        args["volume"] = int(volume)
     return args
 
 

@@ -84,7 +84,9 @@ class SimRobot:
         args = command.args
         if command.channel == "speech":
             words = len(str(args.get("text", "")).split())
-            return 0.3 + 60.0 * words / self.speaking_rate_wpm
+            rate = args.get("rate_wpm")
+            wpm = float(rate) if isinstance(rate, int | float) and 40 <= rate <= 400 else None
+            return 0.3 + 60.0 * words / (wpm or self.speaking_rate_wpm)
         if command.channel == "media":
             return _seconds(args.get("duration_s"), DEFAULT_MEDIA_S)
         if command.channel == "motion":

@@ -248,3 +248,17 @@ def test_the_voice_volume_comes_from_the_voice_settings_rule(bench: Bench) -> No
     speech: list[RobotCommand] = [c for c in bench.commands if c.channel == "speech"]
     assert speech[0].args["volume"] == 80
     assert "Ana" in speech[0].args["text"]
+
+
+def test_the_speaking_rate_comes_from_the_voice_settings_rule_and_slows_the_robot(
+    bench: Bench,
+) -> None:
+    bench.rules = FakeRules({"VoiceSettings": ["volume:35", "rate:75"]})
+    activity = bench.start(bench.create("presentation"))
+    bench.advance(activity, 5)
+    speech: list[RobotCommand] = [c for c in bench.commands if c.channel == "speech"]
+    assert speech[0].args["volume"] == 35 and speech[0].args["rate_wpm"] == 75
+    slow = bench.robot.duration(speech[0])
+    assert slow > bench.robot.duration(speech[0].model_copy(update={"args": {"text": "x"}}))
+    normal = speech[0].model_copy(update={"args": {"text": speech[0].args["text"]}})
+    assert slow == pytest.approx(0.3 + (bench.robot.duration(normal) - 0.3) * 2.0)
