@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -10,6 +11,8 @@ import pytest
 from dms.config import load_config
 from dms.errors import ConfigError
 from dms.messages import SCHEMAS, write_schemas
+from motivation import DEFAULT_DRIVES
+from motivation import load_config as load_motivation
 
 
 def test_defaults_match_the_contract() -> None:
@@ -68,3 +71,16 @@ def test_every_message_gets_a_json_schema(tmp_path: Path) -> None:
     } <= set(state["properties"])
     params = json.loads((tmp_path / "params.schema.json").read_text())
     assert params["type"] == "object"
+
+
+def test_the_readme_configuration_is_valid(tmp_path: Path) -> None:
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    found = re.search(r"```toml\n(.*?)```", readme, re.S)
+    assert found, "README has no TOML example"
+    path = tmp_path / "dms.toml"
+    path.write_text(found.group(1))
+    settings = load_config(path)
+    assert settings.timezone == "Europe/Madrid" and settings.controller.done_timeout_s == 120
+    motivation = load_motivation(settings.motivation)
+    assert motivation.drives["rest"].threshold == 65
+    assert motivation.drives["rest"].rate_per_hour == DEFAULT_DRIVES["rest"]["rate_per_hour"]
