@@ -9,9 +9,20 @@ fields, so ``[motivation.drives.rest] threshold = 70`` changes only the threshol
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any, Literal, get_args, get_origin
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+import annotated_types
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
+from pydantic.fields import FieldInfo
+from pydantic_core import ErrorDetails
 
 from dms.activity_names import ACTIVITIES
 
@@ -94,13 +105,13 @@ class DriveConfig(BaseModel):
                 raise ValueError(f"{name}: points per minute must be in [0, 100], got {per_minute}")
         return value
 
-    @model_validator(mode="after")
-    def _satiation_below_threshold(self) -> DriveConfig:
-        if self.satiation is not None and self.satiation > self.threshold:
-            raise ValueError(
-                f"satiation ({self.satiation}) must not exceed threshold ({self.threshold})"
-            )
-        return self
+    @field_validator("satiation")
+    @classmethod
+    def _satiation_below_threshold(cls, value: float | None, info: ValidationInfo) -> float | None:
+        threshold = info.data.get("threshold")
+        if value is not None and threshold is not None and value > threshold:
+            raise ValueError(f"must not exceed the threshold ({threshold:g})")
+        return value
 
     @property
     def release(self) -> float:
@@ -223,16 +234,74 @@ class MotivationConfig(BaseModel):
         return {name: drive for name, drive in self.drives.items() if drive.enabled}
 
 
+_BOUNDS = ("greater_than_equal", "greater_than", "less_than_equal", "less_than")
+_NOT_A_NUMBER = ("float_type", "float_parsing", "finite_number", "int_type", "int_parsing")
+
+
+def _field_at(loc: tuple[int | str, ...]) -> FieldInfo | None:
+    """The field a validation error points at, following models and dict values."""
+    kind: Any = MotivationConfig
+    field: FieldInfo | None = None
+    parts = list(loc)
+    while parts:
+        part = parts.pop(0)
+        if isinstance(kind, type) and issubclass(kind, BaseModel):
+            field = kind.model_fields.get(str(part))
+            if field is None:
+                return None
+            kind = field.annotation
+        elif get_origin(kind) is dict:
+            kind = get_args(kind)[1]  # ``part`` was the key: go on with the value type
+        else:
+            return None
+    return field
+
+
+def _range(field: FieldInfo) -> str | None:
+    """``[0, 100]``, ``(0, 100000]``, ``[0, 24)``: the bounds declared on a field."""
+    low: object = None
+    high: object = None
+    left, right = "[", "]"
+    for rule in field.metadata:
+        if isinstance(rule, annotated_types.Ge):
+            low = rule.ge
+        elif isinstance(rule, annotated_types.Gt):
+            low, left = rule.gt, "("
+        elif isinstance(rule, annotated_types.Le):
+            high = rule.le
+        elif isinstance(rule, annotated_types.Lt):
+            high, right = rule.lt, ")"
+    if not isinstance(low, int | float) or not isinstance(high, int | float):
+        return None
+    return f"{left}{low:g}, {high:g}{right}"
+
+
+def _describe(first: ErrorDetails) -> str:
+    """One error as ``field: what is allowed (got value)``."""
+    loc = tuple(first["loc"])
+    where = ".".join(str(part) for part in ("motivation", *loc))
+    message = str(first["msg"]).removeprefix("Value error, ")
+    field = _field_at(loc)
+    allowed = _range(field) if field is not None else None
+    if allowed is not None and first["type"] in _BOUNDS:
+        message = f"must be in {allowed}"
+    elif allowed is not None and first["type"] in _NOT_A_NUMBER:
+        message = f"must be a number in {allowed}"
+    got = first.get("input")
+    hidden = isinstance(got, dict | list) or got is None or repr(got) in message
+    return f"{where}: {message}" + ("" if hidden else f" (got {got!r})")
+
+
 def load_config(data: Any) -> MotivationConfig:
-    """Validate a ``[motivation]`` table; raise MotivationConfigError with one line."""
+    """Validate a ``[motivation]`` table; raise MotivationConfigError with one line.
+
+    The line names the first wrong field and, for a number, its allowed range:
+    ``motivation.drives.rest.threshold: must be in [0, 100] (got 150)``.
+    """
     try:
         return MotivationConfig.model_validate(data or {})
     except ValidationError as error:
-        first = error.errors()[0]
-        where = ".".join(str(part) for part in ("motivation", *first["loc"]))
-        message = str(first["msg"]).removeprefix("Value error, ")
-        got = first.get("input")
-        shown = "" if isinstance(got, dict | list) or got is None else f" (got {got!r})"
-        more = len(error.errors()) - 1
+        errors = error.errors()
+        more = len(errors) - 1
         tail = f"; and {more} more" if more else ""
-        raise MotivationConfigError(f"{where}: {message}{shown}{tail}") from None
+        raise MotivationConfigError(f"{_describe(errors[0])}{tail}") from None

@@ -125,7 +125,7 @@ def clipped_walk(
     while position < len(changes):
         path = value + np.cumsum(changes[position:])
         if under_lower:
-            walk = path - np.minimum(0.0, np.minimum.accumulate(path))
+            walk = path - np.minimum(0.0, np.minimum.accumulate(path - low))
             crossing = np.flatnonzero(walk > high)
         else:
             walk = path - np.maximum(0.0, np.maximum.accumulate(path - high))
