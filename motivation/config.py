@@ -288,7 +288,8 @@ def _describe(first: ErrorDetails) -> str:
     elif allowed is not None and first["type"] in _NOT_A_NUMBER:
         message = f"must be a number in {allowed}"
     got = first.get("input")
-    hidden = isinstance(got, dict | list) or got is None or repr(got) in message
+    hidden = isinstance(got, dict | list) or got is None
+    hidden = hidden or (isinstance(got, str) and repr(got) in message)
     return f"{where}: {message}" + ("" if hidden else f" (got {got!r})")
 
 
