@@ -15,6 +15,7 @@ which give the same numbers as stepping at the tick rate.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from datetime import UTC, datetime, tzinfo
 
@@ -99,6 +100,18 @@ class MotivationModel:
                 [0.0 if behavior in d.dormant_during else 1.0 for d in drives.values()],
                 dtype=np.float64,
             )
+        self._rate_rows = [
+            (float(b), float(w), float(p))
+            for b, w, p in zip(self.table.base, self.table.swing, self.table.peak_s, strict=True)
+        ]
+        self._level_rows = [
+            (float(t), float(r), float(a))
+            for t, r, a in zip(
+                self.table.threshold, self.table.release, self.table.alpha, strict=True
+            )
+        ]
+        self._awake_rows = {name: row.tolist() for name, row in self._awake.items()}
+        self._satisfaction_rows = {name: row.tolist() for name, row in self._satisfaction.items()}
         self._relief_per_source = {
             name: {source: per_minute / 60.0 for source, per_minute in d.relieved_by.items()}
             for name, d in drives.items()
@@ -174,22 +187,20 @@ class MotivationModel:
             raise ValueError(f"dt must not be negative, got {dt}")
         end = local_seconds(now, self.zone)
         start = end - dt
-        growth = self.net_growth(stimuli, running)
-        swing = self.swing(running)
-        peaks = self.table.peak_s
-        drives = np.maximum(0.0, state.drives - stimuli.instant)
-        evolved = np.array(
-            [
-                evolve(
-                    float(drives[i]), float(growth[i]), float(swing[i]), float(peaks[i]), start, end
-                )
-                for i in range(len(self.names))
-            ],
-            dtype=np.float64,
-        )
-        return MotivationState(
-            evolved, stimuli.levels, self.next_dominant(state.dominant, evolved, stimuli.levels)
-        )
+        # Plain floats: for three drives numpy's per-call overhead would dominate the tick.
+        awake = self._awake_rows.get(running, self._awake_rows[None])
+        satisfied = self._satisfaction_rows.get(running, self._satisfaction_rows[None])
+        relief = stimuli.relief.tolist()
+        instant = stimuli.instant.tolist()
+        evolved: list[float] = []
+        for i, drive in enumerate(state.drives.tolist()):
+            base, swing, peak = self._rate_rows[i]
+            drive = max(0.0, drive - instant[i])
+            growth = base * awake[i] - satisfied[i] - relief[i]
+            evolved.append(evolve(drive, growth, swing * awake[i], peak, start, end))
+        levels = stimuli.levels.tolist()
+        dominant = self._next_dominant(state.dominant, evolved, levels)
+        return MotivationState(np.array(evolved, dtype=np.float64), stimuli.levels, dominant)
 
     def advance(
         self,
@@ -217,24 +228,37 @@ class MotivationModel:
         self, drives: FloatArray, levels: FloatArray, dominant: int = NO_DOMINANT
     ) -> FloatArray:
         """``M_i``: the drive plus its stimulus when active, else 0."""
-        active = drives >= self.table.threshold
-        if dominant != NO_DOMINANT:
-            active = active.copy()
-            active[dominant] = drives[dominant] >= self.table.release[dominant]
-        return np.where(active, drives + self.table.alpha * levels, 0.0)
+        values = self._motivations(drives.tolist(), levels.tolist(), dominant)
+        return np.array(values, dtype=np.float64)
+
+    def _motivations(self, drives: list[float], levels: list[float], dominant: int) -> list[float]:
+        out = []
+        for i, (threshold, release, alpha) in enumerate(self._level_rows):
+            floor = release if i == dominant else threshold
+            out.append(drives[i] + alpha * levels[i] if drives[i] >= floor else 0.0)
+        return out
 
     def next_dominant(self, previous: int, drives: FloatArray, levels: FloatArray) -> int:
         """The dominant drive after ``previous``, with hysteresis; NO_DOMINANT if none is active."""
-        table = self.table
-        raw = drives + table.alpha * levels
-        above = drives >= table.threshold
-        others = np.where(above, raw, -np.inf)
-        if previous == NO_DOMINANT or drives[previous] < table.release[previous]:
-            return int(np.argmax(others)) if above.any() else NO_DOMINANT
-        others[previous] = -np.inf
-        challenger = int(np.argmax(others))
-        if others[challenger] > raw[previous] + self.config.hysteresis:
-            return challenger
+        return self._next_dominant(previous, drives.tolist(), levels.tolist())
+
+    def _next_dominant(self, previous: int, drives: list[float], levels: list[float]) -> int:
+        rows = self._level_rows
+        best, best_value = NO_DOMINANT, -math.inf
+        for i, (threshold, _release, alpha) in enumerate(rows):
+            if i != previous and drives[i] >= threshold:
+                value = drives[i] + alpha * levels[i]
+                if value > best_value:
+                    best, best_value = i, value
+        if previous == NO_DOMINANT:
+            return best
+        _threshold, release, alpha = rows[previous]
+        if drives[previous] < release:
+            return best  # it lets go (release <= threshold): the strongest active drive takes over
+        if best != NO_DOMINANT and best_value > drives[previous] + alpha * levels[previous] + (
+            self.config.hysteresis
+        ):
+            return best
         return previous
 
     def dominant(self, state: MotivationState) -> str | None:
@@ -257,14 +281,13 @@ class MotivationModel:
 
     def snapshot(self, state: MotivationState) -> dict[str, object]:
         """The ``motivation`` field of DmsState."""
-        motivations = self.motivations(state.drives, state.levels, state.dominant)
+        drives = state.drives.tolist()
+        motivations = self._motivations(drives, state.levels.tolist(), state.dominant)
         return {
             "dominant": self.dominant(state),
-            "drives": {
-                name: round(float(v), 3) for name, v in zip(self.names, state.drives, strict=True)
-            },
+            "drives": {name: round(v, 3) for name, v in zip(self.names, drives, strict=True)},
             "motivations": {
-                name: round(float(v), 3) for name, v in zip(self.names, motivations, strict=True)
+                name: round(v, 3) for name, v in zip(self.names, motivations, strict=True)
             },
             "wellbeing": round(self.wellbeing(state.drives), 3),
         }
