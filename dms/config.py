@@ -119,6 +119,16 @@ def _describe(error: ValidationError, where: str) -> str:
     return f"{where}: {field}: {first['msg']}{more}"
 
 
+def read_toml(path: Path) -> dict[str, Any]:
+    """The tables of a TOML file; ConfigError with one line if it cannot be read or parsed."""
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except OSError as error:
+        raise ConfigError(f"{path}: cannot read: {error.strerror}") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
+        raise ConfigError(f"{path}: not valid TOML: {error}") from None
+
+
 def load_config(
     path: Path | None = None,
     *,
@@ -131,16 +141,8 @@ def load_config(
     seed: int | None = None,
 ) -> Settings:
     """Read ``path`` (TOML) if given, then apply the flags that were set."""
-    data: dict[str, Any] = {}
-    where = "configuration"
-    if path is not None:
-        where = str(path)
-        try:
-            data = tomllib.loads(path.read_text(encoding="utf-8"))
-        except OSError as error:
-            raise ConfigError(f"{path}: cannot read: {error.strerror}") from None
-        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
-            raise ConfigError(f"{path}: not valid TOML: {error}") from None
+    data: dict[str, Any] = read_toml(path) if path is not None else {}
+    where = str(path) if path is not None else "configuration"
     flags: dict[str, Any] = {"robot_id": robot_id, "db": db, "robot": robot, "seed": seed}
     data.update({name: value for name, value in flags.items() if value is not None})
     zenoh = dict(data.get("zenoh") or {})
