@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from datetime import datetime, timedelta
+from datetime import UTC, datetime, timedelta
 
 import numpy as np
 from numpy.typing import NDArray
@@ -188,11 +188,15 @@ def simulate(
     ``running`` is the behavior for the whole run unless ``follow``, where it is the
     dominant motivation's behavior at each tick. ``every`` > 0 keeps one sample every
     that many ticks (0 keeps none). A last partial tick, if any, is one ``step``.
+    ``start`` may be in any zone; the ticks are counted in elapsed (UTC) time.
     """
     if tick_s <= 0 or duration < 0:
         raise ValueError(
             f"tick_s must be positive and duration not negative, got {tick_s}, {duration}"
         )
+    # ``aware + timedelta`` adds wall-clock time in the datetime's own zone: across a
+    # daylight-saving change that is an hour off elapsed time, so count in UTC
+    start = start.astimezone(UTC)
     table = model.table
     ticks = int(duration // tick_s)
     epoch = start.timestamp()
