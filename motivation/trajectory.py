@@ -11,6 +11,7 @@ the new behavior's satisfaction.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
@@ -67,6 +68,8 @@ def _turning_intervals(a: float, b: float, peak_s: float, times: FloatArray) -> 
 
 def drive_path(drive: float, a: float, b: float, peak_s: float, times: FloatArray) -> FloatArray:
     """The drive at ``times[1:]`` from ``drive`` at ``times[0]``, exactly (see module doc)."""
+    if a == 0.0 and b == 0.0:  # dormant and nothing taking it down: it stays (as in step)
+        return np.full(len(times) - 1, drive, dtype=np.float64)
     changes = signed_integrals(a, b, peak_s, times)
     turning = _turning_intervals(a, b, peak_s, times)
     if turning.size == 0:
@@ -87,35 +90,44 @@ def scan_dominance(
 ) -> IntArray:
     """The dominant drive after each row of ``drives``; the same rule as ``next_dominant``."""
     table = model.table
-    raw = drives + table.alpha * levels
-    above = drives >= table.threshold
-    held = drives >= table.release
+    count = len(model.names)
+    # column by column: with a handful of drives, n one-dimensional maxima beat one
+    # reduction along a short axis
+    raw = (drives + table.alpha * levels).T.copy()
+    above = (drives >= table.threshold).T.copy()
+    held = (drives >= table.release).T.copy()
     masked = np.where(above, raw, -np.inf)
+    any_above = functools.reduce(np.logical_or, above)
     out = np.empty(len(drives), dtype=np.int64)
     position, dominant = 0, previous
     while position < len(drives):
         if dominant == NO_DOMINANT:
-            found = np.flatnonzero(above[position:].any(axis=1))
+            found = np.flatnonzero(any_above[position:])
             if found.size == 0:
                 out[position:] = NO_DOMINANT
                 break
             j = position + int(found[0])
             out[position:j] = NO_DOMINANT
-            dominant = int(np.argmax(masked[j]))
+            dominant = int(np.argmax(masked[:, j]))
         else:
-            others = masked[position:].copy()
-            others[:, dominant] = -np.inf
-            challenge = others.max(axis=1) > raw[position:, dominant] + model.config.hysteresis
-            found = np.flatnonzero(~held[position:, dominant] | challenge)
+            others = [masked[i, position:] for i in range(count) if i != dominant]
+            letting_go = ~held[dominant, position:]
+            if others:
+                best = functools.reduce(np.maximum, others)
+                bar = raw[dominant, position:] + model.config.hysteresis
+                letting_go |= best > bar
+            found = np.flatnonzero(letting_go)
             if found.size == 0:
                 out[position:] = dominant
                 break
             j = position + int(found[0])
             out[position:j] = dominant
-            if held[j, dominant]:
-                dominant = int(np.argmax(others[j - position]))
+            if held[dominant, j]:  # overtaken by more than the margin
+                row = masked[:, j].copy()
+                row[dominant] = -np.inf
+                dominant = int(np.argmax(row))
             else:
-                dominant = int(np.argmax(masked[j])) if above[j].any() else NO_DOMINANT
+                dominant = int(np.argmax(masked[:, j])) if any_above[j] else NO_DOMINANT
         out[j] = dominant
         position = j + 1
     return out
