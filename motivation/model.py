@@ -79,6 +79,17 @@ def local_seconds(now: datetime, zone: tzinfo) -> float:
     return now.timestamp() + (offset.total_seconds() if offset is not None else 0.0)
 
 
+def day_seconds(now: datetime, zone: tzinfo) -> float:
+    """Seconds since local midnight at ``now``: ``local_seconds`` modulo a day, but exact.
+
+    Seconds since 1970 as a float resolve only 2.4e-7 s, so ``end - dt`` of a step
+    rounds; at a drive moving a point a second that was 1e-6 points a step. Small
+    numbers keep the closed form exact for any ``dt``.
+    """
+    local = now.astimezone(zone)
+    return local.hour * 3600.0 + local.minute * 60.0 + local.second + local.microsecond / 1e6
+
+
 class MotivationModel:
     """The model for one configuration and time zone; holds no state of its own."""
 
@@ -117,6 +128,9 @@ class MotivationModel:
             for name, d in drives.items()
         }
         self._drive_sources = {name: d.stimuli for name, d in drives.items()}
+        self._omega = self.table.omega.tolist()
+        self._omega_total = float(sum(self._omega))
+        self._last_stimuli: tuple[Percepts, Stimuli] | None = None
 
     # ------------------------------------------------------------------ inputs
 
@@ -129,22 +143,24 @@ class MotivationModel:
 
     def stimuli(self, percepts: Percepts) -> Stimuli:
         """The stimuli per drive for what is perceived now."""
+        last = self._last_stimuli
+        if last is not None and last[0] == percepts:
+            return last[1]  # the room rarely changes from one tick to the next
         sources = source_levels(percepts, self.config.stimuli)
-        levels = np.array(
-            [
-                max((sources[s] for s in self._drive_sources[name]), default=0.0)
-                for name in self.names
-            ],
-            dtype=np.float64,
+        levels = [
+            max((sources[s] for s in self._drive_sources[name]), default=0.0) for name in self.names
+        ]
+        relief = [
+            sum(rate * sources[s] for s, rate in self._relief_per_source[name].items())
+            for name in self.names
+        ]
+        stimuli = Stimuli(
+            np.array(levels, dtype=np.float64),
+            np.array(relief, dtype=np.float64),
+            self.table.touch_relief * caress_count(percepts),
         )
-        relief = np.array(
-            [
-                sum(rate * sources[s] for s, rate in self._relief_per_source[name].items())
-                for name in self.names
-            ],
-            dtype=np.float64,
-        )
-        return Stimuli(levels, relief, self.table.touch_relief * caress_count(percepts))
+        self._last_stimuli = (percepts, stimuli)
+        return stimuli
 
     def no_stimuli(self) -> Stimuli:
         """Nothing perceived: an empty room at an unknown light level."""
@@ -181,11 +197,13 @@ class MotivationModel:
         """The state at ``now`` from the state at ``now - dt`` under these inputs, exactly.
 
         The caresses of ``stimuli`` count once, at the start; the dominant motivation is
-        chosen at ``now``.
+        chosen at ``now``. The daily rhythm is read off the wall clock at ``now``: a step
+        across a daylight-saving change is taken wholly in the new offset (at the
+        daemon's 0.5 s ticks, that is half a second of rhythm).
         """
         if dt < 0:
             raise ValueError(f"dt must not be negative, got {dt}")
-        end = local_seconds(now, self.zone)
+        end = day_seconds(now, self.zone)
         start = end - dt
         # Plain floats: for three drives numpy's per-call overhead would dominate the tick.
         awake = self._awake_rows.get(running, self._awake_rows[None])
@@ -273,11 +291,11 @@ class MotivationModel:
 
     def wellbeing(self, drives: FloatArray) -> float:
         """``100 - sum(omega_i * D_i) / sum(omega_i)`` (100 when no drive has a weight)."""
-        total = float(self.table.omega.sum())
-        if total == 0:
+        if self._omega_total == 0:
             return 100.0
+        weighted = sum(w * d for w, d in zip(self._omega, drives.tolist(), strict=True))
         # clipped: with every drive at 100 the rounding of the mean can leave -1e-14
-        return min(100.0, max(0.0, 100.0 - float(self.table.omega @ drives) / total))
+        return min(100.0, max(0.0, 100.0 - weighted / self._omega_total))
 
     def snapshot(self, state: MotivationState) -> dict[str, object]:
         """The ``motivation`` field of DmsState."""
