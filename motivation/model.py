@@ -293,7 +293,7 @@ class MotivationModel:
         """``100 - sum(omega_i * D_i) / sum(omega_i)`` (100 when no drive has a weight)."""
         if self._omega_total == 0:
             return 100.0
-        weighted = sum(w * d for w, d in zip(self._omega, drives.tolist(), strict=True))
+        weighted = float(sum(w * d for w, d in zip(self._omega, drives.tolist(), strict=True)))
         # clipped: with every drive at 100 the rounding of the mean can leave -1e-14
         return min(100.0, max(0.0, 100.0 - weighted / self._omega_total))
 

@@ -6,7 +6,8 @@ an exact clipped walk (``dynamics.clipped_walk`` over the closed-form change of 
 tick, split where the drive turns), and the dominant motivation is found by jumping
 from one switch to the next. With ``follow=True`` the running behavior follows the
 dominant motivation, as an idle robot does: at each switch the window restarts with
-the new behavior's satisfaction.
+the new behavior's satisfaction. A window also ends at a daylight-saving change, since
+``step`` reads the rhythm off the wall clock at the end of each tick.
 """
 
 from __future__ import annotations
@@ -27,7 +28,13 @@ from motivation.dynamics import (
     pieces,
     signed_integrals,
 )
-from motivation.model import NO_DOMINANT, MotivationModel, MotivationState, local_seconds
+from motivation.model import (
+    NO_DOMINANT,
+    MotivationModel,
+    MotivationState,
+    day_seconds,
+    local_seconds,
+)
 from motivation.stimuli import Stimuli
 
 IntArray = NDArray[np.int64]
@@ -158,8 +165,8 @@ def _offset(model: MotivationModel, start: datetime, tick_s: float, tick: int) -
 
 def _same_offset(
     model: MotivationModel, start: datetime, tick_s: float, position: int, width: int
-) -> tuple[float, int]:
-    """The offset of the window's first tick and how many ticks from there share it.
+) -> int:
+    """How many ticks from the window's first share its UTC offset.
 
     ``step`` reads the wall clock at the end of each tick, so across a daylight-saving
     change the rhythm jumps with it; a window stops before the first tick in the new
@@ -173,15 +180,15 @@ def _same_offset(
         if _offset(model, start, tick_s, tick) == offset:
             low = tick
             continue
-        high = tick  # the change is in (low, high]: bisect for its first tick
+        high: int = tick  # the change is in (low, high]: bisect for its first tick
         while high - low > 1:
             middle = (low + high) // 2
             if _offset(model, start, tick_s, middle) == offset:
                 low = middle
             else:
                 high = middle
-        return offset, high - 1 - position
-    return offset, width
+        return high - 1 - position
+    return width
 
 
 def simulate(
@@ -211,7 +218,6 @@ def simulate(
     start = start.astimezone(UTC)
     table = model.table
     ticks = int(duration // tick_s)
-    epoch = start.timestamp()
     drives = np.maximum(0.0, state.drives - stimuli.instant)
     dominant = state.dominant
     levels = stimuli.levels
@@ -220,10 +226,11 @@ def simulate(
     position, window, switches, since_switch = 0, FIRST_WINDOW, 0, 0
     while position < ticks:
         width = min(window, ticks - position)
-        offset, width = _same_offset(model, start, tick_s, position, width)
-        times = (epoch + offset) + tick_s * np.arange(
-            position, position + width + 1, dtype=np.float64
-        )
+        width = _same_offset(model, start, tick_s, position, width)
+        # the wall clock as step reads it: seconds since local midnight at the end of the
+        # window's first tick (small numbers, exact), then tick by tick from there
+        first_end = day_seconds(start + timedelta(seconds=(position + 1) * tick_s), model.zone)
+        times = (first_end - tick_s) + tick_s * np.arange(width + 1, dtype=np.float64)
         growth, swing = model.net_growth(stimuli, current), model.swing(current)
         block = np.empty((width, len(model.names)), dtype=np.float64)
         for i in range(len(model.names)):
