@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import tomllib
 from datetime import UTC, datetime
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -164,3 +166,14 @@ def test_a_custom_drive_needs_its_rate_threshold_and_behavior() -> None:
 def test_an_unknown_stimulus_source_is_refused() -> None:
     with pytest.raises(MotivationConfigError, match=r"motivation\.drives\.rest\.stimuli\.0"):
         load_config({"drives": {"rest": {"stimuli": ["smell"]}}})
+
+
+def test_the_documented_example_loads() -> None:
+    """docs/motivation.md's TOML example is valid and does what its comments say."""
+    text = (Path(__file__).resolve().parents[2] / "docs" / "motivation.md").read_text("utf-8")
+    example = text.split("```toml\n", 1)[1].split("```", 1)[0]
+    config = load_config(tomllib.loads(example)["motivation"])
+    assert list(config.active_drives) == ["rest", "social", "curiosity"]
+    assert config.drives["rest"].threshold == 65 and config.drives["rest"].release == 20
+    assert config.drives["rest"].rate_per_hour == DEFAULT_DRIVES["rest"]["rate_per_hour"]
+    assert config.drives["curiosity"].behavior == "news"
