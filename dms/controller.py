@@ -66,7 +66,7 @@ from dms.profiles import ProfileService
 from dms.rules import LiveRules
 from managers import Manager, ManagerReply, ManagerStatus, make_managers
 from memory import ActivityChooser, Profile, Question, QuestionBank
-from motivation import MotivationModel, MotivationState, Percepts
+from motivation import MotivationModel, MotivationState, Percepts, simulate
 
 log = logging.getLogger(__name__)
 
@@ -175,6 +175,7 @@ class Controller:
         self._now: datetime | None = None
         self._last_step: datetime | None = None
         self._motivation: MotivationState | None = None
+        self._percepts: Percepts | None = None
         self.current: Running | None = None
         self.suspended: Running | None = None
         self.dialog: Dialog | None = None
@@ -249,9 +250,32 @@ class Controller:
             touches=tuple(self._touches),
         )
         stimuli = model.stimuli(percepts)
+        self._percepts = percepts
         running = self.current.name if self.current and not self.current.paused else None
         self._motivation = model.step(self._motivation, dt, stimuli, running, now)
         self._last_step = now
+
+    def next_motivated_change(self, now: datetime, horizon_s: float) -> float | None:
+        """Seconds from ``now`` to the tick at which, with the inputs as they are, the
+        motivated behavior would change; None if not within ``horizon_s``.
+
+        For simulations that skip the ticks of an empty room: they may jump this far and
+        lose nothing, since the motivation is exact over any step.
+        """
+        state, percepts = self._motivation, self._percepts
+        if state is None or percepts is None:
+            return None
+        model = self.deps.motivation
+        stimuli = model.stimuli(Percepts(percepts.user_present, percepts.engagement, percepts.env))
+        running = self.current.name if self.current and not self.current.paused else None
+        period = self.settings.tick_period_s
+        run = simulate(model, state, now, horizon_s, stimuli, running=running, tick_s=period)
+        expected = model.behavior(state)
+        behaviors = [*model.table.behaviors, model.config.idle_behavior]
+        for index, dominant in enumerate(run.dominant.tolist()):
+            if behaviors[dominant] != expected:
+                return (index + 1) * period
+        return None
 
     # ------------------------------------------------------------------ step 2: events
 

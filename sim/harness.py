@@ -11,7 +11,8 @@ every decision.
 Between inputs nothing happens but the clock, so the simulation runs as fast as the
 controller ticks. :attr:`Simulation.idle_step_s` lets a long run take larger virtual
 steps while nobody is present and no dialog is open (the motivation model steps
-exactly for any ``dt``); see docs/simulation.md for what ``ticks`` counts.
+exactly for any ``dt``), but never past the 2 Hz tick at which the motivated behavior
+changes; see docs/simulation.md for what ``ticks`` counts.
 """
 
 from __future__ import annotations
@@ -232,7 +233,9 @@ class Simulation:
             return self.period
         if self.controller.dialog is not None:
             return self.period
-        return idle
+        # Never past the tick where the motivated behavior changes: the switch stays exact.
+        change = self.controller.next_motivated_change(self.clock.now(), idle)
+        return idle if change is None else max(self.period, change)
 
     def run_until(self, t_end: float) -> None:
         """Tick (periodically and on urgent inputs) until virtual second ``t_end``."""

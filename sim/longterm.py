@@ -8,11 +8,12 @@ waits up to two hours for them to be there.
 
 While someone is in front of the robot, or a dialog is open, the controller ticks at
 2 Hz as in the daemon. While nobody is there it ticks every ``idle_step_s`` (5 min)
-instead, and at once at an arrival: the motivation model integrates any step exactly
-(it is a closed form between inputs), the idle behaviors (sleep, wait, calling for
-attention) only react to the motivation, and the agenda fires only for a present
-user, so nothing is lost but the resolution of the idle timeline. ``ticks`` in the
-JSON counts the controller ticks actually run.
+instead, and at once at an arrival, and at the very 2 Hz tick where the motivated
+behavior changes (the motivation model is exact over any step and tells when): the
+idle behaviors (sleep, wait, calling for attention) only react to the motivation, and
+the agenda fires only for a present user, so the motivation's decisions fall on the
+same ticks as at 2 Hz (tests/sim/test_idle_steps.py); only the inside of an idle
+activity is seen less often. ``ticks`` in the JSON counts the controller ticks run.
 """
 
 from __future__ import annotations
