@@ -10,45 +10,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from alembic import command
-from alembic.config import Config
-from alembic.runtime.migration import MigrationContext
-from alembic.script import ScriptDirectory
-from sqlalchemy import Connection, Engine, inspect
-
 from memory.db import make_engine
+from memory.schema_history import SchemaHistory
 
 VERSION_TABLE = "alembic_version_agenda"
 HERE = Path(__file__).resolve().parent
 
-
-def _config(connection: Connection | None = None) -> Config:
-    config = Config()
-    config.set_main_option("script_location", str(HERE))
-    config.set_main_option("path_separator", "os")
-    config.set_main_option("version_locations", str(HERE / "versions"))
-    if connection is not None:
-        config.attributes["connection"] = connection
-    return config
-
-
-def head() -> str:
-    """The newest revision this code knows."""
-    heads = ScriptDirectory.from_config(_config()).get_heads()
-    return heads[0]
-
-
-def current(connection: Connection) -> str | None:
-    """The revision the database is at; None when the agenda was never installed."""
-    context = MigrationContext.configure(connection, opts={"version_table": VERSION_TABLE})
-    heads = context.get_current_heads()
-    return heads[0] if heads else None
-
-
-def upgrade_engine(engine: Engine) -> None:
-    """Bring the agenda's tables on ``engine`` to head."""
-    with engine.begin() as connection:
-        command.upgrade(_config(connection), "head")
+HISTORY = SchemaHistory(HERE, VERSION_TABLE, ("agenda_items",))
+head = HISTORY.head
+current = HISTORY.current
+installed = HISTORY.installed
+upgrade_engine = HISTORY.upgrade_engine
 
 
 def upgrade(url: str) -> None:
@@ -68,9 +40,3 @@ def is_current(url: str) -> bool:
             return current(connection) == head()
     finally:
         engine.dispose()
-
-
-def installed(connection: Connection) -> bool:
-    """Whether the agenda has a version table or tables in this database."""
-    names = set(inspect(connection).get_table_names())
-    return VERSION_TABLE in names or "agenda_items" in names
