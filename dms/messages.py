@@ -83,10 +83,9 @@ class ProfileParams(Inbound):
     @classmethod
     def _finite(cls, values: dict[str, Any]) -> dict[str, Any]:
         for name, value in values.items():
-            if (
-                (isinstance(value, float)
-                and value != value)
-                or value in (float("inf"), float("-inf"))
+            if (isinstance(value, float) and value != value) or value in (
+                float("inf"),
+                float("-inf"),
             ):
                 raise ValueError(f"{name} is not a finite number")
         return values

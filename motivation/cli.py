@@ -10,7 +10,6 @@ start (today, 08:00 local: a robot switched on in the morning).
 from __future__ import annotations
 
 import json
-import tomllib
 import zoneinfo
 from dataclasses import dataclass
 from datetime import datetime, time, tzinfo
@@ -20,6 +19,7 @@ from typing import Annotated, Any
 import numpy as np
 import typer
 
+from dms.config import read_toml
 from dms.errors import ConfigError
 from motivation.config import MotivationConfig, MotivationConfigError, load_config
 
@@ -47,12 +47,7 @@ def read_daemon_file(path: Path | None) -> DaemonFile:
     """The validated ``[motivation]`` table and the ``timezone`` of ``path`` (defaults if None)."""
     if path is None:
         return DaemonFile(load_config({}), None)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as error:
-        raise ConfigError(f"{path}: cannot read: {error.strerror}") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
-        raise ConfigError(f"{path}: not valid TOML: {error}") from None
+    data = read_toml(path)
     table: Any = data.get("motivation", {})
     if not isinstance(table, dict):
         raise ConfigError(f"{path}: motivation: must be a table")
