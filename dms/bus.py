@@ -121,8 +121,16 @@ class ZenohBus:
             expr = self._key(key + "**") if key.endswith("/") else self._key(key)
             self._entities.append(session.declare_queryable(expr, self._serve(handler)))
         for key in (keys.DMS_STATE, keys.DMS_DECISION, keys.DMS_ERRORS, keys.ROBOT_COMMAND):
+            # The state comes again next tick, so a congested link may drop one; a decision,
+            # a rejection or a robot command is said once, so it waits for room instead
+            # (Zenoh closes a link blocked for longer than its block timeout).
+            congestion = (
+                zenoh.CongestionControl.DROP
+                if key == keys.DMS_STATE
+                else zenoh.CongestionControl.BLOCK
+            )
             self._publishers[key] = session.declare_publisher(
-                self._key(key), encoding=JSON, express=True
+                self._key(key), encoding=JSON, express=True, congestion_control=congestion
             )
 
     def _serve(self, handler: QueryHandler) -> Callable[[zenoh.Query], None]:

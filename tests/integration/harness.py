@@ -163,7 +163,14 @@ def running_daemon(
 
 def put(session: zenoh.Session, key: str, payload: dict[str, Any] | bytes) -> None:
     data = payload if isinstance(payload, bytes) else json.dumps(payload).encode()
-    session.put(f"robots/mini/{key}", data, encoding=zenoh.Encoding.APPLICATION_JSON)
+    # BLOCK: a megabyte payload is fragmented, and under the default DROP a busy queue
+    # may drop it at the sender, before the daemon could reject it.
+    session.put(
+        f"robots/mini/{key}",
+        data,
+        encoding=zenoh.Encoding.APPLICATION_JSON,
+        congestion_control=zenoh.CongestionControl.BLOCK,
+    )
 
 
 def query(
