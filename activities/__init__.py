@@ -8,7 +8,12 @@ See ``docs/behaviors.md`` for the file format, the blocks and the containers.
 from activities.activity import Activity, ActivityResult, ActivityStatus
 from activities.context import ActivityContext, RuleEvaluator
 from activities.errors import BehaviorError
-from activities.library import BehaviorLibrary
+from activities.library import (
+    BehaviorLibrary,
+    decision_problems,
+    decision_warnings,
+    reload_rules_and_behaviors,
+)
 
 __all__ = [
     "Activity",
@@ -18,4 +23,7 @@ __all__ = [
     "BehaviorError",
     "BehaviorLibrary",
     "RuleEvaluator",
+    "decision_problems",
+    "decision_warnings",
+    "reload_rules_and_behaviors",
 ]

@@ -9,9 +9,9 @@ daemon keeps the previous behaviors otherwise.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Collection, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 from activities.activity import Activity
 from activities.blocks import BLOCKS
@@ -54,6 +54,73 @@ def load_specs(directory: Path) -> tuple[dict[str, BehaviorSpec], list[str]]:
         specs[spec.name] = spec
     problems.extend(check_references(specs))
     return specs, problems
+
+
+OutcomeCheck = Callable[[str, Collection[str]], Sequence[object]]
+"""``check(component, outcomes)``: the problems of a DMSL component used by a decide state
+(``functools.partial(dms.rules.check_outcomes, ruleset)``); each problem printed as is."""
+
+
+def decision_problems(specs: Mapping[str, BehaviorSpec], check: OutcomeCheck) -> list[str]:
+    """Decide states whose DMSL component may activate something not among their outcomes.
+
+    Each problem is ``FILE:LINE: state PATH: RULES-FILE:LINE:COL: message``, naming both
+    the behavior's state and the rule's activation.
+    """
+    problems: list[str] = []
+
+    def walk(spec: BehaviorSpec, state: StateSpec, path: str) -> None:
+        for name, child in state.states.items():
+            child_path = f"{path}/{name}" if path else name
+            if child.block == "decide":
+                component = str(child.params.get("component"))
+                at = f"{spec.path or spec.name}:{child.line}: state {child_path}:"
+                outcomes = BLOCKS["decide"].outcomes_for(child.params)
+                problems.extend(f"{at} {problem}" for problem in check(component, outcomes))
+            walk(spec, child, child_path)
+
+    for name in sorted(specs):
+        walk(specs[name], specs[name].root, "")
+    return problems
+
+
+class LiveRuleFiles(Protocol):
+    """The daemon's reloadable rules (``dms.rules.LiveRules``), as the behaviors see them."""
+
+    def reload(self) -> Sequence[object]: ...
+
+    def check_outcomes(self, component: str, outcomes: Collection[str]) -> Sequence[object]: ...
+
+
+def decision_warnings(library: BehaviorLibrary, rules: LiveRuleFiles | None) -> list[str]:
+    """Decide states whose DMSL component may activate something they do not declare.
+
+    A warning, not a refusal: such an activation is ignored and the state's ``default``
+    decides, so the robot still works.
+    """
+    if rules is None:
+        return []
+    return library.check_decisions(rules.check_outcomes)
+
+
+def reload_rules_and_behaviors(
+    library: BehaviorLibrary, rules: LiveRuleFiles | None
+) -> list[tuple[str, str]]:
+    """Reload the rules files and the behaviors folder (SIGHUP, ``reload_rules``).
+
+    Each keeps its previous version when the new one does not verify. Returns
+    ``(key, line)`` pairs for ``dms/errors``: every rules problem, one line for refused
+    behaviors, then the decide states that the rules and behaviors in force disagree on.
+    """
+    found: list[tuple[str, str]] = []
+    if rules is not None:
+        found.extend(("rules", str(problem)) for problem in rules.reload())
+    problems = library.reload()
+    if problems:
+        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+        found.append(("behaviors", f"{problems[0]}{more}; keeping the previous behaviors"))
+    found.extend(("behaviors", line) for line in decision_warnings(library, rules))
+    return found
 
 
 class BehaviorLibrary:
@@ -102,6 +169,10 @@ class BehaviorLibrary:
             return self._specs[name]
         except KeyError:
             raise UnknownBehavior(f"no behavior named {name!r}") from None
+
+    def check_decisions(self, check: OutcomeCheck) -> list[str]:
+        """:func:`decision_problems` of every behavior in the library."""
+        return decision_problems(self._specs, check)
 
     def reload(self) -> list[str]:
         """Re-read the directory; swap in only when every file is good. Problems, or []."""

@@ -11,11 +11,11 @@ from __future__ import annotations
 import random
 import zoneinfo
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
-from activities import BehaviorLibrary
+from activities import BehaviorError, BehaviorLibrary, decision_warnings
 from agenda import Agenda, AgendaError
 from dms.config import Settings
 from dms.controller import Controller, ControllerDeps
@@ -42,6 +42,8 @@ class Stack:
     agenda: Agenda | None
     rules: LiveRules | None
     library: BehaviorLibrary
+    warnings: list[tuple[str, str]] = field(default_factory=list)
+    """``(key, line)`` found while loading, for ``dms/errors`` once the bus is open."""
 
     def close(self) -> None:
         if self.store is not None:
@@ -82,13 +84,17 @@ def build_stack(
     except MotivationConfigError as error:
         raise ConfigError(str(error)) from None
     hour = hour_in(settings.timezone)
-    library = BehaviorLibrary.load()
+    try:
+        library = BehaviorLibrary.load(settings.behaviors.folder)
+    except BehaviorError as error:
+        raise ConfigError(f"behaviors: {error}") from None
     rules: LiveRules | None = None
     if settings.rules.files:
         try:
             rules = LiveRules(settings.rules.files)
         except RulesError as error:
             raise ConfigError(f"rules: {error}") from None
+    warnings = [("behaviors", line) for line in decision_warnings(library, rules)]
     store: ProfileStore | None = None
     agenda: Agenda | None = None
     profiles: ProfileService | None = None
@@ -139,4 +145,4 @@ def build_stack(
     controller = Controller(
         deps, inputs, settings.controller, settings.robot_id, rng, timezone_hour=hour
     )
-    return Stack(controller, inputs, expression, store, agenda, rules, library)
+    return Stack(controller, inputs, expression, store, agenda, rules, library, warnings)

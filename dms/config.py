@@ -87,6 +87,11 @@ class RulesSettings(_Section):
     schema_file: Path | None = None
 
 
+class BehaviorsSettings(_Section):
+    folder: Path | None = None
+    """A folder of behavior files; None means the shipped behaviors."""
+
+
 class Settings(_Section):
     """Everything ``dms run`` needs."""
 
@@ -100,6 +105,7 @@ class Settings(_Section):
     inputs: InputSettings = Field(default_factory=InputSettings)
     controller: ControllerSettings = Field(default_factory=ControllerSettings)
     rules: RulesSettings = Field(default_factory=RulesSettings)
+    behaviors: BehaviorsSettings = Field(default_factory=BehaviorsSettings)
     motivation: dict[str, Any] = Field(default_factory=dict)
     """Validated by the motivation package's own model."""
     source: Path | None = Field(default=None, exclude=True)
@@ -162,4 +168,10 @@ def load_config(
     if path is not None:
         base = path.parent
         settings.rules.files = [f if f.is_absolute() else base / f for f in settings.rules.files]
+        folder = settings.behaviors.folder
+        if folder is not None and not folder.is_absolute():
+            settings.behaviors.folder = base / folder
+    folder = settings.behaviors.folder
+    if folder is not None and not folder.is_dir():
+        raise ConfigError(f"{where}: behaviors.folder: {folder} is not a directory")
     return settings

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
-from activities import ActivityContext, BehaviorLibrary
+from activities import ActivityContext, BehaviorLibrary, reload_rules_and_behaviors
 from activities.synonyms import match_activity
 from agenda import Agenda, DueItem
 from dms import keys
@@ -525,12 +525,10 @@ class Controller:
             return None
 
     def reload_rules(self) -> None:
-        """Reload the rules files; keep the old rules if the new ones do not verify."""
-        if self.deps.rules is None:
-            return
-        problems = self.deps.rules.reload()
-        for problem in problems:
-            self.deps.report_error("rules", str(problem))
+        """Reload the rules files and the behaviors; each keeps its old version if the new
+        one does not verify. Activities started afterwards use the new behaviors."""
+        for key, problem in reload_rules_and_behaviors(self.deps.library, self.deps.rules):
+            self.deps.report_error(key, problem)
 
     def _start(
         self,

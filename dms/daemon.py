@@ -4,7 +4,7 @@ The loop ticks at 2 Hz against monotonic deadlines and at once when an urgent in
 (a touch, a request, a screen choice, speech) arrives. Each tick's decisions are
 published on ``dms/decision`` and printed, then the state on ``dms/state``. The
 ``alive/dms`` token is declared only once everything is ready. SIGINT and SIGTERM
-stop the running activity, flush the store and exit 0; SIGHUP reloads the rules.
+stop the running activity, flush the store and exit 0; SIGHUP reloads the rules and the behaviors.
 """
 
 from __future__ import annotations
@@ -167,6 +167,8 @@ class Daemon:
                 keys.DMS_BEHAVIOR: self._query_behavior,
             },
         )
+        for key, warning in self.stack.warnings:
+            self.report_error(key, warning)
         agenda = self.stack.agenda
         if agenda is not None:
             for item in agenda.recover(self.clock.now()):

@@ -120,6 +120,10 @@ class LiveRules:
             self._current = fresh
         return []
 
+    def check_outcomes(self, component: str, outcomes: Collection[str]) -> list[Problem]:
+        """:func:`check_outcomes` on the rules in force (a decide state's outcomes)."""
+        return check_outcomes(self.current, component, outcomes)
+
     def evaluate(self, component: str, params: Params) -> RuleResult | None:
         """``component``'s decision, or ``None`` when no rule defines it (built-in logic)."""
         rules = self.current
