@@ -357,7 +357,7 @@ class Controller:
 
     def _open_dialog(self, dialog: Dialog, now: datetime) -> None:
         self.dialog = dialog
-        dialog.ask(self.deps.expression, now)
+        dialog.ask(self.deps.expression, now, self._style())
         activity = dialog.context.get("activity")
         self._decide("ask", activity, dialog.kind.value, None, dialog.question, now)
 

@@ -3,8 +3,9 @@
 Three of the paper's steps are questions put by the decision-making system, not by an
 activity: "continue or stop?" after a touch on the right shoulder, "how much did you
 like it?" after an activity (step 7) and general questions that fill the profile
-(step 8). A :class:`Dialog` asks once by voice and on the screen, takes the first
-answer that arrives by speech or touch screen, and gives up after its timeout.
+(step 8). A :class:`Dialog` asks once, in the user's interaction style (voice or
+screen, which the profile switches after repeated unanswered prompts: Table 2), takes
+the first answer that arrives by speech or touch screen, and gives up after its timeout.
 """
 
 from __future__ import annotations
@@ -42,10 +43,19 @@ class Dialog:
     channel: str | None = None
     """"voice" or "screen": how the answer came."""
 
-    def ask(self, expression: ExpressionArbiter, now: datetime) -> None:
-        expression.request(
-            SOURCE, "speech", "say", {"text": self.question}, now, priority=Priority.HIGH
-        )
+    def ask(self, expression: ExpressionArbiter, now: datetime, style: str = "voice") -> None:
+        """Put the question in the user's interaction style (the paper's Table 2).
+
+        ``voice``: the robot says the question and the choices it can take; ``screen``:
+        it shows the choices and says to answer on the screen. The screen shows the
+        choices in both, and an answer by either channel is taken.
+        """
+        spoken = self.question
+        if self.choices and style == "screen":
+            spoken = f"{self.question} Please answer on the screen."
+        elif self.choices and not any(c.lower() in self.question.lower() for c in self.choices):
+            spoken = f"{self.question} You can say {say_choices(self.choices)}."
+        expression.request(SOURCE, "speech", "say", {"text": spoken}, now, priority=Priority.HIGH)
         if self.choices:
             expression.request(
                 SOURCE,
@@ -70,6 +80,11 @@ class Dialog:
 
     def expired(self, now: datetime) -> bool:
         return self.answer is None and now >= self.deadline
+
+
+def say_choices(choices: tuple[str, ...]) -> str:
+    """``"a, b or c"``: the choices as the robot reads them out."""
+    return choices[0] if len(choices) == 1 else f"{', '.join(choices[:-1])} or {choices[-1]}"
 
 
 def match_choice(text: str, choices: tuple[str, ...]) -> str | None:
