@@ -1,0 +1,156 @@
+"""Reloading a running daemon: rules and behaviors, on SIGHUP and on ``reload_rules``.
+
+A real ``dms run`` over real Zenoh. An invalid new version is reported once on
+``dms/errors`` and the previous one keeps deciding; a valid one takes effect for the
+next decision or the next activity. Every wait is for a message.
+"""
+
+from __future__ import annotations
+
+import shutil
+import signal
+from pathlib import Path
+from typing import Any
+
+import pytest
+import zenoh
+
+from activities.library import BEHAVIORS_DIR
+from tests.integration.harness import Collector, DaemonProcess, put, query, running_daemon
+
+pytestmark = pytest.mark.integration
+
+ANN_READY = {"present": True, "user_id": "ann", "ready": True, "engagement": 0.8}
+
+RULES = """\
+component ChooseMode [ activate "autonomous" ]
+component ChooseEntertainment [ activate "{activity}" ]
+"""
+
+
+def _rules(activity: str) -> str:
+    return RULES.replace("{activity}", activity)
+
+
+def _robot_pick(decisions: Collector, mark: int) -> dict[str, Any]:
+    """The next activity the robot starts by itself (a rule or its preferences)."""
+    return decisions.wait_for(
+        lambda d: d["action"] == "start" and d["reason"] == "preference", start=mark
+    )
+
+
+def _cancel_and_pick(session: zenoh.Session, decisions: Collector, activity: str) -> str:
+    """Cancel the running activity; the detail of the robot's next pick."""
+    mark = decisions.mark()
+    put(session, "request", {"action": "cancel", "activity": activity, "by": "test"})
+    detail = _robot_pick(decisions, mark)["detail"]
+    assert isinstance(detail, str)
+    return detail
+
+
+def _hup(daemon: DaemonProcess) -> None:
+    assert daemon.proc is not None
+    daemon.proc.send_signal(signal.SIGHUP)
+
+
+def test_rules_reload_keeps_old_rules_on_error_and_takes_new_ones(tmp_path: Path) -> None:
+    rules = tmp_path / "decisions.dmsl"
+    rules.write_text(_rules("jokes"))
+    config = '[rules]\nfiles = ["decisions.dmsl"]\n'
+    with running_daemon(tmp_path, extra_config=config) as (daemon, session):
+        decisions = Collector(session, "robots/mini/dms/decision")
+        errors = Collector(session, "robots/mini/dms/errors")
+        put(session, "perception/user", ANN_READY)
+        assert _robot_pick(decisions, 0)["detail"] == "rule ChooseEntertainment -> jokes"
+
+        # an invalid version (a syntax error): reported once, the old rules decide
+        rules.write_text(_rules("news").replace("activate", "activat", 1))
+        _hup(daemon)
+        report = errors.wait_for(lambda e: e["key"] == "rules")
+        assert str(rules) in report["error"] and "syntax error" in report["error"]
+        assert _cancel_and_pick(session, decisions, "jokes") == "rule ChooseEntertainment -> jokes"
+        assert [e for e in errors.messages if e["key"] == "rules"] == [report]
+
+        # a valid version through the request: the next decision follows it
+        rules.write_text(_rules("news"))
+        put(session, "request", {"action": "reload_rules", "by": "test"})
+        assert _cancel_and_pick(session, decisions, "jokes") == "rule ChooseEntertainment -> news"
+        assert len(errors.messages) == 1
+
+
+def test_behaviors_reload_keeps_old_version_on_error_and_takes_new_one(tmp_path: Path) -> None:
+    folder = tmp_path / "behaviors"
+    shutil.copytree(BEHAVIORS_DIR, folder)
+    jokes = folder / "jokes.yaml"
+    original = jokes.read_text()
+    intro = "I know some good jokes. Here are three of them."
+    assert intro in original
+    with running_daemon(tmp_path, extra_config='[behaviors]\nfolder = "behaviors"\n') as (
+        daemon,
+        session,
+    ):
+        errors = Collector(session, "robots/mini/dms/errors")
+        commands = Collector(session, "robots/mini/robot/command")
+        decisions = Collector(session, "robots/mini/dms/decision")
+
+        def tell_jokes() -> str:
+            """Start jokes, return its first words, cancel it."""
+            mark, said_from = decisions.mark(), commands.mark()
+            put(session, "request", {"action": "start", "activity": "jokes", "by": "test"})
+            decisions.wait_for(
+                lambda d: d["action"] == "start" and d["activity"] == "jokes", start=mark
+            )
+            said = commands.wait_for(  # both versions of the intro mention jokes
+                lambda c: c["action"] == "say" and "jokes" in c["args"]["text"].lower(),
+                start=said_from,
+            )
+            put(session, "request", {"action": "cancel", "activity": "jokes", "by": "test"})
+            decisions.wait_for(
+                lambda d: d["action"] == "cancel" and d["activity"] == "jokes", start=mark
+            )
+            text = said["args"]["text"]
+            assert isinstance(text, str)
+            return text
+
+        assert tell_jokes() == intro
+
+        # an invalid version (a transition to a missing state): refused, old one kept
+        jokes.write_text(original.replace("transitions: {done: PICK}", "transitions: {done: PIK}"))
+        _hup(daemon)
+        report = errors.wait_for(lambda e: e["key"] == "behaviors")
+        assert str(jokes) in report["error"] and "PIK" in report["error"]
+        assert "\n" not in report["error"]
+        assert tell_jokes() == intro
+
+        # a valid version: the next jokes activity says the new text
+        jokes.write_text(original.replace(intro, "Fresh jokes, just written."))
+        # the reload and the start queue in order: the start sees the new version
+        put(session, "request", {"action": "reload_rules", "by": "test"})
+        assert tell_jokes() == "Fresh jokes, just written."
+        assert len(errors.messages) == 1
+
+
+def test_behavior_queryable_answers_with_the_running_structure(tmp_path: Path) -> None:
+    with running_daemon(tmp_path) as (_daemon, session):
+        decisions = Collector(session, "robots/mini/dms/decision")
+        commands = Collector(session, "robots/mini/robot/command")
+        put(session, "request", {"action": "start", "activity": "jokes", "by": "test"})
+        decisions.wait_for(lambda d: d["action"] == "start" and d["activity"] == "jokes")
+        commands.wait_for(lambda c: c["action"] == "say" and "jokes" in c["args"]["text"])
+        ((ok, answer),) = query(session, "dms/behavior")
+        assert ok and answer["activity"] == "jokes"
+        structure = answer["structure"]
+        assert structure["name"] == "jokes" and structure["status"] == "running"
+        assert structure["active_path"].startswith(("INTRO", "PICK", "TELL"))
+        root = structure["root"]
+        assert root["kind"] == "state_machine" and root["transitions"]["INTRO"] == {"done": "PICK"}
+        assert {"INTRO", "PICK", "TELL", "END", "SETUP", "PUNCHLINE"} <= _state_names(root)
+        active = [s["name"] for s in root["states"] if s["active"]]
+        assert active == [structure["active_path"].split("/")[0]]
+
+
+def _state_names(node: dict[str, Any]) -> set[str]:
+    names = {str(node.get("name"))}
+    for child in node.get("states") or []:
+        names |= _state_names(child)
+    return names
