@@ -20,10 +20,10 @@ from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 from typing import Any
 
-from sqlalchemy import Connection, Engine, bindparam, delete, insert, select, update
+from sqlalchemy import Connection, Engine, bindparam, delete, insert, inspect, select, update
 from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.exc import IntegrityError, SQLAlchemyError
-from sqlalchemy.orm import sessionmaker
+from sqlalchemy.orm import Session, sessionmaker
 
 from agenda import migrations
 from agenda.errors import AgendaError, AgendaNotFound
@@ -51,6 +51,7 @@ from agenda.schedule import (
 )
 from dms.activity_names import ACTIVITIES
 from memory.db import make_engine
+from memory.store import register_user_data
 
 log = logging.getLogger(__name__)
 
@@ -258,6 +259,34 @@ class Agenda:
             with self._sessions() as session:
                 return [_occurrence(row) for row in session.scalars(query)]
 
+    # ------------------------------------------------------------------ privacy
+
+    def export_user(self, user_id: str) -> dict[str, list[dict[str, Any]]]:
+        """The user's items and their delivery log, as stored (``dms users export``)."""
+        with self._lock:
+            self._flush()
+            with self._sessions() as session:
+                data = USER_DATA.export_user(session, user_id)
+            return data or {"items": [], "log": []}
+
+    def erase_user(self, user_id: str) -> None:
+        """Delete the user's items and log, and forget their items here.
+
+        :meth:`memory.ProfileStore.erase` deletes the same rows with the profile; this
+        is for the process that holds the agenda's index (the daemon).
+        """
+        with self._lock:
+            self._flush()
+            try:
+                with self._sessions.begin() as session:
+                    USER_DATA.erase_user(session, user_id)
+            except SQLAlchemyError as error:
+                raise AgendaError(
+                    f"cannot erase the agenda of {user_id}: {_one_line(error)}"
+                ) from None
+            for item_id in self._index.user_items(user_id):
+                self._index.drop(item_id)
+
     # ------------------------------------------------------------------ internals
 
     def _advance(self, now_us: int, down: bool) -> None:
@@ -274,10 +303,12 @@ class Agenda:
             return
         try:
             with self._engine.begin() as connection:
-                _write(connection, self._queue)
+                gone = _write(connection, self._queue)
         except SQLAlchemyError as error:
             raise AgendaError(f"cannot write the agenda's log: {_one_line(error)}") from None
         self._queue.clear()
+        for item_id in gone:  # removed or erased by another process: forget it here too
+            self._index.drop(item_id)
         self._flush_at_us = None
 
     def _load(self, user_id: str | None) -> None:
@@ -428,16 +459,24 @@ def _check_lead(schedule: Schedule, first: datetime, lead_s: int) -> None:
         fire = after
 
 
-def _write(connection: Connection, records: list[MissedRun | _Delivery]) -> None:
+def _write(connection: Connection, records: list[MissedRun | _Delivery]) -> set[int]:
     """Log ``records`` and move their items' cursors, in bulk (one statement each).
 
     An occurrence already logged (by another process, or before a crash) is skipped:
-    ``(item_id, fire_time)`` is unique.
+    ``(item_id, fire_time)`` is unique. So is one of an item no longer stored (removed
+    or erased by another process): an erased user's log must not come back. Returns
+    the ids of those items.
     """
+    ids = {record.item.item_id for record in records}
+    table = ItemRow.__table__
+    stored = set(connection.scalars(select(table.c.id).where(table.c.id.in_(ids))))
+    gone = ids - stored
     rows: list[dict[str, Any]] = []
     cursors: dict[int, int | None] = {}
     for record in records:
         item = record.item
+        if item.item_id in gone:
+            continue
         if isinstance(record, _Delivery):
             first = last = record.fire_us
             outcome, count, reason = Outcome.DELIVERED, 1, ""
@@ -460,6 +499,8 @@ def _write(connection: Connection, records: list[MissedRun | _Delivery]) -> None
             }
         )
         cursors[item.item_id] = record.cursor_us
+    if not rows:
+        return gone
     _insert_new(connection, rows)
     connection.execute(
         update(ItemRow.__table__)  # type: ignore[arg-type]
@@ -470,6 +511,7 @@ def _write(connection: Connection, records: list[MissedRun | _Delivery]) -> None
             for item_id, cursor in cursors.items()
         ],
     )
+    return gone
 
 
 def _insert_new(connection: Connection, rows: list[dict[str, Any]]) -> None:
@@ -532,3 +574,51 @@ def _occurrence(row: OccurrenceRow) -> Occurrence:
         recorded_at=row.recorded_at,
         reason=row.reason,
     )
+
+
+class _AgendaUserData:
+    """The agenda's part of ``dms users export|erase``: the user's items and log.
+
+    Registered with the profile store, which calls it inside its own transaction. A
+    database without the agenda's tables (a store made by ``memory`` alone) has none.
+    """
+
+    name = "agenda"
+
+    def export_user(self, session: Session, user_id: str) -> dict[str, list[dict[str, Any]]] | None:
+        """Every column of the user's items and log rows, oldest first."""
+        if not _has_tables(session):
+            return None
+        return {
+            "items": [_stored(row) for row in session.scalars(_of(ItemRow, user_id))],
+            "log": [_stored(row) for row in session.scalars(_of(OccurrenceRow, user_id))],
+        }
+
+    def erase_user(self, session: Session, user_id: str) -> None:
+        """Delete the user's log and items."""
+        if not _has_tables(session):
+            return
+        session.execute(delete(OccurrenceRow).where(OccurrenceRow.user_id == user_id))
+        session.execute(delete(ItemRow).where(ItemRow.user_id == user_id))
+
+
+def _has_tables(session: Session) -> bool:
+    names = {ItemRow.__tablename__, OccurrenceRow.__tablename__}
+    return names <= set(inspect(session.connection()).get_table_names())
+
+
+def _of(model: type[ItemRow] | type[OccurrenceRow], user_id: str) -> Any:
+    return select(model).where(model.user_id == user_id).order_by(model.id)
+
+
+def _stored(row: ItemRow | OccurrenceRow) -> dict[str, Any]:
+    """A row as stored, times in ISO 8601."""
+    out: dict[str, Any] = {}
+    for column in row.__table__.columns:
+        value = getattr(row, column.key)
+        out[column.key] = value.isoformat() if isinstance(value, datetime) else value
+    return out
+
+
+USER_DATA = _AgendaUserData()
+register_user_data(USER_DATA)

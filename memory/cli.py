@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from typing import Annotated
 
 import typer
@@ -37,8 +37,19 @@ DbOption = Annotated[
 UserArgument = Annotated[str, typer.Argument(help="The user id.")]
 
 
+def _load_user_data_parts() -> None:
+    """Import the packages that keep more about users in the same database.
+
+    The agenda registers its items and log with the store on import, so that export
+    and erase cover them; memory does not depend on it otherwise.
+    """
+    with suppress(ImportError):  # an install without the agenda package has none
+        import agenda.service  # noqa: F401
+
+
 @contextmanager
 def _store(db: str | None) -> Iterator[ProfileStore]:
+    _load_user_data_parts()
     store = ProfileStore(db or default_url())
     try:
         yield store
@@ -64,7 +75,7 @@ def show_user(user_id: UserArgument, db: DbOption = None) -> None:
 
 @app.command("export")
 def export_user(user_id: UserArgument, db: DbOption = None) -> None:
-    """Print everything stored about the user, history included, as JSON."""
+    """Print everything stored about the user, history and agenda included, as JSON."""
     with _store(db) as store:
         data = store.export(user_id)
     typer.echo(json.dumps(data, indent=2, ensure_ascii=False))
@@ -72,7 +83,7 @@ def export_user(user_id: UserArgument, db: DbOption = None) -> None:
 
 @app.command("erase")
 def erase_user(user_id: UserArgument, db: DbOption = None) -> None:
-    """Delete everything stored about the user, history included."""
+    """Delete everything stored about the user, history and agenda included."""
     with _store(db) as store:
         store.erase(user_id)
     typer.echo(f"erased {user_id}")

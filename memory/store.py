@@ -12,7 +12,7 @@ import math
 from collections.abc import Iterator
 from contextlib import contextmanager
 from datetime import datetime
-from typing import Any
+from typing import Any, Protocol
 
 from sqlalchemy import delete, select
 from sqlalchemy.engine import make_url
@@ -131,6 +131,34 @@ def estimate_proactivity(taken: int, offered: int) -> tuple[str, float]:
         return "unknown", confidence
     level = "low" if mean < 1 / 3 else "moderate" if mean < 2 / 3 else "high"
     return level, confidence
+
+
+class UserData(Protocol):
+    """Rows about users that another package keeps in the same database (the agenda).
+
+    Registered with :func:`register_user_data` so that :meth:`ProfileStore.export` and
+    :meth:`ProfileStore.erase` cover them too, in the same transaction, without the
+    memory package importing the other one.
+    """
+
+    name: str
+    """The key of this part in the export."""
+
+    def export_user(self, session: Session, user_id: str) -> Any | None:
+        """Everything this part stores about ``user_id``, JSON-able; None if it has no tables."""
+        ...
+
+    def erase_user(self, session: Session, user_id: str) -> None:
+        """Delete every row this part stores about ``user_id``."""
+        ...
+
+
+_USER_DATA: dict[str, UserData] = {}
+
+
+def register_user_data(part: UserData) -> None:
+    """Add ``part`` to every export and erase (called when its package is imported)."""
+    _USER_DATA[part.name] = part
 
 
 class _Conflict(ProfileError):
@@ -280,7 +308,10 @@ class ProfileStore:
             return list(session.scalars(select(UserRow.user_id).order_by(UserRow.user_id)))
 
     def export(self, user_id: str) -> dict[str, Any]:
-        """Everything stored about the user, history included, as JSON-able data."""
+        """Everything stored about the user, history included, as JSON-able data.
+
+        Registered :class:`UserData` parts add their own key (``agenda``).
+        """
         with self._session() as session:
             row = self._user(session, user_id)
             profile = snapshot(row).model_dump(mode="json")
@@ -292,7 +323,7 @@ class ProfileStore:
                     )
                 )
 
-            return {
+            data: dict[str, Any] = {
                 "profile": profile,
                 "sessions": [
                     {
@@ -328,11 +359,22 @@ class ProfileStore:
                     for a in rows(AnswerRow)
                 ],
             }
+            for part in _USER_DATA.values():
+                extra = part.export_user(session, user_id)
+                if extra is not None:
+                    data[part.name] = extra
+            return data
 
     def erase(self, user_id: str) -> None:
-        """Delete everything about the user, history included (and so from training)."""
+        """Delete everything about the user, history included (and so from training).
+
+        The registered :class:`UserData` parts (the agenda's items and log) go in the
+        same transaction: either nothing or everything of the user is deleted.
+        """
         with self._session() as session:
             self._user(session, user_id)
+            for part in _USER_DATA.values():
+                part.erase_user(session, user_id)
             # Explicit deletes, children first: no reliance on the backend's cascade.
             for model in (AnswerRow, FeedbackRow, ActivityRunRow, SessionRow, ActivityScoreRow):
                 session.execute(delete(model).where(model.user_id == user_id))
