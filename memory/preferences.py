@@ -15,8 +15,11 @@ from __future__ import annotations
 
 import csv
 import itertools
+import logging
 import random
-from collections.abc import Collection, Iterable, Mapping
+import threading
+from collections.abc import Callable, Collection, Iterable, Mapping
+from datetime import datetime
 from functools import cache
 from typing import TYPE_CHECKING, Any
 
@@ -31,6 +34,8 @@ from memory.seed_data import FEATURE_COLUMNS, SEED_CSV
 
 if TYPE_CHECKING:
     from memory.store import ProfileStore
+
+log = logging.getLogger(__name__)
 
 ACTIVITIES: tuple[str, ...] = ENTERTAINMENT_ACTIVITIES
 PAIRS: tuple[tuple[int, int], ...] = tuple(itertools.combinations(range(len(ACTIVITIES)), 2))
@@ -189,12 +194,82 @@ NOVELTY_PROBABILITY = 0.15
 """Chance to pick an activity the user has never done, while there is one."""
 
 
-class ActivityChooser:
-    """Picks the next entertainment activity for a user (the autonomous choice)."""
+RETRAIN_EVERY_S = 600.0
+"""Shortest time between two retrainings of the chooser's model (its clock's seconds)."""
 
-    def __init__(self, model: PreferenceModel, store: ProfileStore | None = None) -> None:
+
+def _in_thread(work: Callable[[], None]) -> threading.Thread:
+    thread = threading.Thread(target=work, name="dms-retrain", daemon=True)
+    thread.start()
+    return thread
+
+
+class ActivityChooser:
+    """Picks the next entertainment activity for a user (the autonomous choice).
+
+    Its model is retrained from the store in the background (:meth:`session_ended`),
+    so new evidence is learnt and an erased user is forgotten while the daemon runs.
+    """
+
+    def __init__(
+        self,
+        model: PreferenceModel,
+        store: ProfileStore | None = None,
+        retrain_every_s: float = RETRAIN_EVERY_S,
+        start: Callable[[Callable[[], None]], threading.Thread] = _in_thread,
+    ) -> None:
+        """``start`` runs a retraining off the caller's thread (tests may replace it)."""
         self.model = model
         self.store = store
+        self.retrain_every_s = retrain_every_s
+        self._start = start
+        self._lock = threading.Lock()
+        self._training: threading.Thread | None = None
+        self._last_retrain: datetime | None = None
+
+    def session_ended(self, now: datetime) -> bool:
+        """When a user leaves: retrain if none ran for :attr:`retrain_every_s`.
+
+        Returns at once; True if a retraining started.
+        """
+        last = self._last_retrain
+        if last is not None and (now - last).total_seconds() < self.retrain_every_s:
+            return False
+        started = self.retrain() is not None
+        if started:
+            self._last_retrain = now
+        return started
+
+    def retrain(self) -> threading.Thread | None:
+        """Start retraining from the store in the background; the new model replaces
+        :attr:`model` (one attribute swap) when it is ready.
+
+        Returns the training's thread, or None when there is no store or one runs.
+        """
+        store = self.store
+        if store is None:
+            return None
+        with self._lock:
+            if self._training is not None and self._training.is_alive():
+                return None
+
+            def work() -> None:
+                try:
+                    model = PreferenceModel.train(store)
+                except Exception as error:  # contained: the old model stays in use
+                    log.warning("retraining the preference model failed: %s", error)
+                    return
+                self.model = model
+
+            self._training = self._start(work)
+            return self._training
+
+    def wait_retrained(self, timeout: float | None = None) -> bool:
+        """Wait for a running retraining (at shutdown, in tests); False on timeout."""
+        training = self._training
+        if training is not None:
+            training.join(timeout)
+        return training is None or not training.is_alive()
 
     def _fresh(self, profile: Profile) -> Profile:
         if self.store is None:
