@@ -459,6 +459,8 @@ class Controller:
         self._session = None
         if session is not None and session.session_id is not None:
             self._profiles_call("end_session", session.session_id, now)
+        if session is not None and self.deps.chooser is not None:
+            self.deps.chooser.session_ended(now)  # retrains in the background, if due
 
     def _load_profile(self, user_id: str, now: datetime) -> Profile | None:
         if self.deps.profiles is None:
