@@ -235,11 +235,14 @@ def record_command(
 
     if not ROBOT_ID_RE.match(robot_id):
         raise SimError(f"--robot-id: {robot_id!r} does not match [a-z0-9_-]+")
-    stop = _stop_on_signals()
-    with ZenohClient(robot_id, make_config(connect=connect or [DEFAULT_ENDPOINT])) as client:
-        recorder = McapRecorder(out, robot_id)
-        print(f"dms: recording robots/{robot_id}/** into {out}; Ctrl-C stops", file=sys.stderr)
-        stats = record_until(recorder, client.subscribe_raw, time.time_ns, stop, duration)
+    recorder = McapRecorder(out, robot_id)  # a bad --out fails before the network is touched
+    try:
+        stop = _stop_on_signals()
+        with ZenohClient(robot_id, make_config(connect=connect or [DEFAULT_ENDPOINT])) as client:
+            print(f"dms: recording robots/{robot_id}/** into {out}; Ctrl-C stops", file=sys.stderr)
+            stats = record_until(recorder, client.subscribe_raw, time.time_ns, stop, duration)
+    finally:
+        recorder.close()
     by_key = ", ".join(f"{key} {count}" for key, count in sorted(stats.by_key.items()))
     print(f"dms: {stats.messages} messages recorded ({by_key or 'none'})", file=sys.stderr)
 
