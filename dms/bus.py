@@ -12,6 +12,7 @@ from a Zenoh JSON5 file (which is also how a deployment turns on TLS and access 
 from __future__ import annotations
 
 import json
+import re
 import threading
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -33,6 +34,12 @@ QueryHandler = Callable[[str, bytes | None], tuple[bool, Any]]
 """Called with (relative key, payload); returns (ok, JSON-able reply)."""
 
 
+def one_line(error: BaseException) -> str:
+    """Zenoh's (often multi-line) error as one line, without its Rust source location."""
+    text = " ".join(str(error).split())
+    return re.sub(r" at /\S+\.rs:\d+\.?", "", text) or type(error).__name__
+
+
 def make_config(
     listen: Sequence[str] = (),
     connect: Sequence[str] = (),
@@ -43,7 +50,7 @@ def make_config(
         try:
             config = zenoh.Config.from_file(str(config_file))
         except (zenoh.ZError, OSError, ValueError) as error:
-            raise ConfigError(f"--zenoh-config {config_file}: {error}") from None
+            raise ConfigError(f"--zenoh-config {config_file}: {one_line(error)}") from None
     else:
         config = zenoh.Config()
         config.insert_json5("mode", json.dumps("peer"))
@@ -63,7 +70,7 @@ def open_session(config: zenoh.Config) -> zenoh.Session:
     try:
         return zenoh.open(config)
     except zenoh.ZError as error:
-        raise ConfigError(f"cannot open the Zenoh session: {error}") from None
+        raise ConfigError(f"cannot open the Zenoh session: {one_line(error)}") from None
 
 
 def encode(payload: Mapping[str, Any] | Sequence[Any]) -> bytes:

@@ -158,6 +158,8 @@ def load_config(
         zenoh["connect"] = list(connect)
     if zenoh_config is not None:
         zenoh["config_file"] = zenoh_config
+    if zenoh.get("config_file") and "listen" not in zenoh:
+        zenoh["listen"] = []  # the file's own endpoints (tls/..., quic/...) stand
     if zenoh:
         data["zenoh"] = zenoh
     try:

@@ -248,9 +248,9 @@ def run_daemon(settings: Settings, visitor: str | None = None, print_decisions: 
     stop_visitor: Callable[[], None] | None = None
     try:
         daemon.start()
+        where = ", ".join(settings.zenoh.listen) or f"the endpoints of {settings.zenoh.config_file}"
         print(
-            f"dms: robot {settings.robot_id} ready on {', '.join(settings.zenoh.listen)} "
-            f"(alive/dms declared); Ctrl-C stops",
+            f"dms: robot {settings.robot_id} ready on {where} (alive/dms declared); Ctrl-C stops",
             file=sys.stderr,
             flush=True,
         )
