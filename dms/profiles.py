@@ -1,9 +1,10 @@
 """The controller's view of the profile store: cached snapshots and retried writes.
 
 The decision loop must keep deciding when the database has a problem: this wrapper
-keeps the last snapshot of each profile it loaded, reports every database error once
-per failure through ``report`` (the daemon publishes it on ``dms/errors``), queues the
-writes that failed and retries them in order every few seconds.
+keeps the last snapshot of each profile it loaded, reports a failed load, and the
+first write of an outage, in one line through ``report`` (the daemon publishes it on
+``dms/errors``), queues the writes that failed and every write behind them, and
+replays them in order every few seconds.
 """
 
 from __future__ import annotations
@@ -45,7 +46,13 @@ class ProfileService:
         return self._cache.get(user_id)
 
     def call(self, method: str, *args: Any, **kwargs: Any) -> Any:
-        """Call a store method; on an outage queue it for retry and return None."""
+        """Call a store method; on an outage queue it for retry and return None.
+
+        Queued writes go first: a write is never overtaken by a later one.
+        """
+        if self._outbox and not self._replay():
+            self._outbox.append((method, args, kwargs))
+            return None
         try:
             result = getattr(self.store, method)(*args, **kwargs)
         except StoreUnavailable as error:
@@ -66,15 +73,23 @@ class ProfileService:
         if self._last_retry and (now - self._last_retry).total_seconds() < RETRY_EVERY_S:
             return
         self._last_retry = now
+        self._replay()
+
+    def _replay(self) -> bool:
+        """Replay queued writes in order; False if the store is still unavailable."""
         while self._outbox:
             method, args, kwargs = self._outbox[0]
             try:
-                getattr(self.store, method)(*args, **kwargs)
+                result = getattr(self.store, method)(*args, **kwargs)
             except StoreUnavailable:
-                return
+                return False
             except ProfileError as error:
                 log.warning("dropping a queued %s: %s", method, error)
+            else:
+                if isinstance(result, Profile):
+                    self._cache[result.user_id] = result
             self._outbox.popleft()
+        return True
 
     @property
     def pending_writes(self) -> int:
