@@ -22,8 +22,8 @@ def test_the_files_listen_endpoints_stand_when_no_listen_flag_is_given(tmp_path:
     port = free_port()
     zenoh_file = tmp_path / "zenoh.json5"
     zenoh_file.write_text(
-        '{mode: "peer", listen: {endpoints: ["tcp/127.0.0.1:%d"]},'
-        " scouting: {multicast: {enabled: false}}}" % port
+        f'{{mode: "peer", listen: {{endpoints: ["tcp/127.0.0.1:{port}"]}},'
+        " scouting: {multicast: {enabled: false}}}"
     )
     log = (tmp_path / "daemon.log").open("w")
     daemon = _dms(
