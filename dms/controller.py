@@ -442,17 +442,18 @@ class Controller:
         session_id = self._profiles_call("start_session", user_id, now)
         if self.deps.agenda is not None:
             self._agenda_call("user_perceived", user_id, now)
-        mode, p_user, detail = self._choose_mode(profile)
-        self._session = _Session(
+        # the session first, so that ChooseMode sees params.user (the profile and its id)
+        self._session = session = _Session(
             user_id=user_id,
             session_id=session_id if isinstance(session_id, int) else None,
             started=now,
-            mode=mode,
-            p_user=p_user,
-            mode_detail=detail,
+            mode="hybrid",
+            p_user=0.5,
+            mode_detail=None,
             questions_left=self.settings.session_questions,
         )
-        log.info("user %s is ready (mode %s)", user_id, mode)
+        session.mode, session.p_user, session.mode_detail = self._choose_mode(profile)
+        log.info("user %s is ready (mode %s)", user_id, session.mode)
 
     def _end_session(self, now: datetime) -> None:
         session = self._session
