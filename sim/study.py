@@ -14,8 +14,11 @@ and the simulated robot did:
   ``general_question``);
 - activities per session: activities started for the participant (menus,
   notifications, waiting and sleeping not counted);
-- activity loading time: from the ``start`` decision to the activity's first command
-  to the robot (0 when it is sent in the tick that started it);
+- activity loading time: from the ``start`` decision until the controller hears from
+  the robot that the activity's first command started (its ``started`` feedback): the
+  wait for the channel (a dialog or another command still speaking) plus the feedback
+  round, which the controller reads at its next update (0 or one tick; see
+  docs/simulation.md for why it is smaller than the paper's);
 - activity execution time: from ``start`` to ``complete``, ``cancel`` or ``fail``;
 - time to change activity: from the end of one activity to the start of the next
   (feedback question, menus and general questions in between);
@@ -37,6 +40,7 @@ from datetime import UTC, datetime
 from typing import Any, Literal
 
 from dms.config import Settings
+from dms.expression import CommandHandle
 from dms.messages import RobotCommand
 from sim.harness import Simulation, TimedDecision
 from sim.persona import Persona, Preferences, load_persona, shipped_personas
@@ -45,6 +49,8 @@ from sim.user import SimulatedUser
 NOT_COUNTED = frozenset({"menu", "notification", "wait", "sleep", "instructions"})
 """Activities that are not what the participant came for (the paper counts entertainment)."""
 USER_CANCEL_REASONS = frozenset({"confirm_cancel", "user_request"})
+ACTIVITY_SOURCE = "activity:"
+"""The prefix of the arbiter's ``source`` for an activity's commands."""
 GAP_S = 120.0
 """Virtual seconds between two participants."""
 
@@ -75,9 +81,11 @@ class SessionObserver:
     def __init__(self) -> None:
         self.metrics = SessionMetrics()
         self._started: dict[str, float] = {}
-        self._waiting_load: float | None = None
+        self._first: dict[str, CommandHandle] = {}
+        """Per activity, its first command sent since its last start or end."""
+        self._loading: dict[str, tuple[float, CommandHandle | None]] = {}
+        """Activities started (at t) whose first command has not started yet."""
         self._last_end: float | None = None
-        self._last_command_t: float | None = None
 
     def on_decision(self, timed: TimedDecision) -> None:
         d, t, m = timed.decision, timed.t, self.metrics
@@ -93,13 +101,9 @@ class SessionObserver:
         if d.action == "start":
             m.activities += 1
             self._started[name] = t
-            if self._last_command_t == t:
-                # Decisions are reported after their tick: a command sent in the same tick
-                # came from the activity as it started.
-                m.load_times.append(0.0)
-                self._waiting_load = None
-            else:
-                self._waiting_load = t
+            # Decisions are reported after their tick: the activity may have sent its
+            # first command in the tick that started it.
+            self._loading[name] = (t, self._first.pop(name, None))
             if self._last_end is not None:
                 m.change_times.append(t - self._last_end)
                 self._last_end = None
@@ -108,6 +112,8 @@ class SessionObserver:
             elif d.chosen_by == "user":
                 m.user_selections += 1
         elif d.action in ("complete", "cancel", "fail"):
+            self._first.pop(name, None)
+            self._loading.pop(name, None)  # ended before its first command started
             began = self._started.pop(name, None)
             if began is not None:
                 m.activity_times.append(t - began)
@@ -117,11 +123,37 @@ class SessionObserver:
             if d.action == "fail":
                 m.other_failures += 1
 
-    def on_command(self, command: RobotCommand, now: datetime, t: float) -> None:
-        self._last_command_t = t
-        if self._waiting_load is not None:
-            self.metrics.load_times.append(t - self._waiting_load)
-            self._waiting_load = None
+    def on_command(self, handle: CommandHandle | None, t: float) -> None:
+        """A command was sent to the robot; ``handle`` is the arbiter's, with its source."""
+        if handle is None or not handle.source.startswith(ACTIVITY_SOURCE):
+            return
+        name = handle.source[len(ACTIVITY_SOURCE) :]
+        loading = self._loading.get(name)
+        if loading is not None and loading[1] is None:
+            self._loading[name] = (loading[0], handle)
+        elif loading is None:
+            self._first.setdefault(name, handle)
+
+    def on_tick(self, t: float) -> None:
+        """After each tick: an activity whose first command the robot reports started is loaded.
+
+        The controller reads the robot's feedback during its tick, so a ``started_at``
+        seen now was set in this tick, at ``t``.
+        """
+        for name, (began, handle) in list(self._loading.items()):
+            if handle is None:
+                continue
+            if handle.started_at is not None:
+                self.metrics.load_times.append(t - began)
+                del self._loading[name]
+            elif handle.finished:
+                del self._loading[name]  # failed or timed out: it never started
+
+
+def _handle(sim: Simulation, command: RobotCommand) -> CommandHandle | None:
+    """The arbiter's handle of ``command``, told to listeners as it is being sent."""
+    handle = sim.stack.expression.active(command.channel)
+    return handle if handle is not None and handle.command_id == command.id else None
 
 
 def participant(base: Persona, index: int, rng: random.Random, level: ProactivityLevel) -> Persona:
@@ -260,7 +292,8 @@ def run_study(
         sim.idle_step_s = 10.0  # between participants nobody is there (see sim.harness)
         observer = SessionObserver()
         sim.decision_listeners.append(lambda timed: observer.on_decision(timed))
-        sim.command_listeners.append(lambda cmd, now: observer.on_command(cmd, now, sim.t))
+        sim.command_listeners.append(lambda cmd, now: observer.on_command(_handle(sim, cmd), sim.t))
+        sim.tick_listeners.append(lambda _record: observer.on_tick(sim.t))
         for index in range(1, sessions + 1):
             person = participant(rng.choice(bases), index, rng, proactivity)
             user = SimulatedUser(person, random.Random(rng.random()))

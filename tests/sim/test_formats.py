@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import itertools
 import random
+from datetime import UTC, datetime
 from pathlib import Path
 
 import pytest
 
+from dms.expression import CommandHandle, CommandStatus, Priority
 from dms.messages import Decision
 from sim.errors import SpecError
 from sim.harness import TimedDecision
@@ -95,6 +97,13 @@ def _d(
     )
 
 
+START = datetime(2026, 11, 23, 10, 0, tzinfo=UTC)
+
+
+def _handle(source: str) -> CommandHandle:
+    return CommandHandle(source, "speech", "say", {"text": "hi"}, Priority.NORMAL)
+
+
 def test_session_observer_measures_table_4() -> None:
     observer = SessionObserver()
     feed = [
@@ -106,20 +115,45 @@ def test_session_observer_measures_table_4() -> None:
         (400.0, _d("complete", "jokes", "completed", "robot")),
         (420.0, _d("fail", "bingo", "activity_error", "robot", "not loaded: broken")),
     ]
+    quiz = _handle("activity:quiz")
+    jokes = _handle("activity:jokes")
     for t, decision in feed:
-        if decision.activity == "jokes":
-            observer.on_command(None, None, t)  # type: ignore[arg-type]
+        if decision.activity == "jokes" and decision.action == "start":
+            observer.on_command(jokes, t)  # sent in the tick that started it
         observer.on_decision(TimedDecision(t, decision))
-        if decision.action == "start" and decision.activity != "jokes":
-            observer.on_command(None, None, t + 0.5)  # type: ignore[arg-type]
+        observer.on_tick(t)
+        if decision.activity == "quiz" and decision.action == "start":
+            observer.on_command(_handle("dialog"), t + 0.5)  # not the quiz's: ignored
+            observer.on_tick(t + 0.5)
+            observer.on_command(quiz, t + 3.0)  # its channel was busy until then
+            observer.on_tick(t + 3.0)
+            quiz.started_at = START
+            observer.on_tick(t + 3.5)
+        if decision.activity == "jokes" and decision.action == "start":
+            jokes.started_at = START
+            observer.on_tick(t + 0.5)
     m = observer.metrics
     assert (m.questions, m.activities, m.robot_decisions, m.user_selections) == (1, 2, 1, 1)
     assert m.cancels == 1 and m.not_loaded == 1 and m.other_failures == 0
     assert m.activity_times == [186.0, 170.0]
     assert m.change_times == [30.0]
-    assert m.load_times == [0.5, 0.0]
+    assert m.load_times == [3.5, 0.5]
     result = StudyResult([m, m], 1.0, 30.0, "moderate", 0)
     summary = result.to_json()
     assert summary["activities_per_session"] == 2.0
     assert summary["failures"]["activity_not_loaded"] == 2
     assert "Activities per session" in result.table()
+
+
+def test_an_activity_whose_first_command_never_starts_has_no_load_time() -> None:
+    observer = SessionObserver()
+    handle = _handle("activity:dance")
+    observer.on_decision(TimedDecision(5.0, _d("start", "dance", "preference", "robot")))
+    observer.on_command(handle, 5.0)
+    handle.status = CommandStatus.FAILED
+    observer.on_tick(5.5)
+    observer.on_decision(TimedDecision(6.0, _d("start", "jokes", "preference", "robot")))
+    observer.on_decision(TimedDecision(8.0, _d("cancel", "jokes", "user_request", "user")))
+    observer.on_tick(8.0)  # cancelled before any command: not loaded, not waited for
+    assert observer.metrics.load_times == []
+    assert observer.metrics.activities == 2
