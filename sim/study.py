@@ -150,7 +150,7 @@ class SessionObserver:
                 del self._loading[name]  # failed or timed out: it never started
 
 
-def _handle(sim: Simulation, command: RobotCommand) -> CommandHandle | None:
+def command_handle(sim: Simulation, command: RobotCommand) -> CommandHandle | None:
     """The arbiter's handle of ``command``, told to listeners as it is being sent."""
     handle = sim.stack.expression.active(command.channel)
     return handle if handle is not None and handle.command_id == command.id else None
@@ -292,7 +292,9 @@ def run_study(
         sim.idle_step_s = 10.0  # between participants nobody is there (see sim.harness)
         observer = SessionObserver()
         sim.decision_listeners.append(lambda timed: observer.on_decision(timed))
-        sim.command_listeners.append(lambda cmd, now: observer.on_command(_handle(sim, cmd), sim.t))
+        sim.command_listeners.append(
+            lambda cmd, now: observer.on_command(command_handle(sim, cmd), sim.t)
+        )
         sim.tick_listeners.append(lambda _record: observer.on_tick(sim.t))
         for index in range(1, sessions + 1):
             person = participant(rng.choice(bases), index, rng, proactivity)
