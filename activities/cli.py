@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import sys
 from enum import StrEnum
+from functools import partial
 from pathlib import Path
 from typing import Annotated
 
@@ -12,7 +13,7 @@ import typer
 
 from activities.diagram import to_dot, to_mermaid
 from activities.errors import BehaviorError
-from activities.library import BehaviorLibrary
+from activities.library import BehaviorLibrary, decision_problems
 from activities.spec import schema_text
 from activities.stepper import BehaviorRun, Step, parse_input
 
@@ -38,17 +39,42 @@ def _print(step: Step) -> None:
 @app.command()
 def check(
     files: Annotated[list[Path], typer.Argument(help="Behavior files to check.")],
+    rules: Annotated[
+        list[Path] | None,
+        typer.Option(help="Rules files: decide states must declare every activation."),
+    ] = None,
 ) -> None:
-    """Check behavior files; one FILE:LINE: state PATH: message line per problem."""
+    """Check behavior files; one FILE:LINE: state PATH: message line per problem.
+
+    With ``--rules``, a decide state whose DMSL component may activate something that is
+    not among its outcomes is a problem too (the rules' own problems first, if any).
+    """
+    from dms.rules import RulesError, check_outcomes, load_rules
+
+    ruleset = None
+    if rules:
+        try:
+            ruleset = load_rules(rules)
+        except RulesError as error:
+            for rule_problem in error.problems:
+                typer.echo(str(rule_problem))
+            raise typer.Exit(1) from None
     failed = False
     for path in files:
         try:
-            BehaviorLibrary.for_file(path)
+            _library, spec = BehaviorLibrary.for_file(path)
         except BehaviorError as error:
             failed = True
             for problem in error.problems:
                 typer.echo(problem)
             continue
+        if ruleset is not None:
+            problems = decision_problems({spec.name: spec}, partial(check_outcomes, ruleset))
+            if problems:
+                failed = True
+                for problem in problems:
+                    typer.echo(problem)
+                continue
         typer.echo(f"{path}: ok")
     if failed:
         raise typer.Exit(1)

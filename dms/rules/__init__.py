@@ -14,7 +14,14 @@ every :class:`Problem`.
 """
 
 from dms.rules.compiler import Params, RuleResult, RuleSet
-from dms.rules.loader import LiveRules, check_files, check_outcomes, load_rules, rules_from_text
+from dms.rules.loader import (
+    LiveRules,
+    check_files,
+    check_outcomes,
+    lint_files,
+    load_rules,
+    rules_from_text,
+)
 from dms.rules.parser import parse
 from dms.rules.problems import Problem, RulesError
 from dms.rules.schema import ParameterSchema
@@ -29,6 +36,7 @@ __all__ = [
     "RulesError",
     "check_files",
     "check_outcomes",
+    "lint_files",
     "load_rules",
     "parse",
     "rules_from_text",

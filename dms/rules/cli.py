@@ -10,7 +10,7 @@ from typing import Annotated, Any
 import typer
 
 from dms.errors import DmsError
-from dms.rules.loader import check_files, load_rules
+from dms.rules.loader import lint_files, load_rules
 from dms.rules.schema import ParameterSchema, TypeName
 
 app = typer.Typer(no_args_is_help=True)
@@ -87,9 +87,14 @@ def check(
         Path | None, typer.Option(help="Parameter schema JSON (see `dms rules schema`).")
     ] = None,
 ) -> None:
-    """Verify rules files: exit 0 when valid, else 1 with FILE:LINE:COL: message lines."""
+    """Verify rules files: exit 0 when valid, else 1 with FILE:LINE:COL: message lines.
+
+    Warnings (``FILE:LINE:COL: warning: ...``) go to stderr and leave the exit code at 0.
+    """
     loaded = ParameterSchema.load(schema) if schema is not None else None
-    problems = check_files(files, loaded)
+    problems, warnings = lint_files(files, loaded)
+    for warning in warnings:
+        typer.echo(str(warning), err=True)
     show_excerpts = stderr_is_terminal()
     for problem in problems:
         typer.echo(str(problem))

@@ -11,7 +11,7 @@ from dms.rules.compiler import Params, RuleResult, RuleSet
 from dms.rules.parser import parse
 from dms.rules.problems import Problem, RulesError
 from dms.rules.schema import ParameterSchema
-from dms.rules.verifier import outcome_problems, verify
+from dms.rules.verifier import activation_warnings, outcome_problems, verify
 
 
 def _read(path: Path) -> tuple[str | None, Problem | None]:
@@ -53,8 +53,23 @@ def _read_all(paths: Sequence[Path]) -> tuple[list[tuple[str, str]], list[Proble
 
 def check_files(paths: Sequence[Path], schema: ParameterSchema | None = None) -> list[Problem]:
     """Every problem of the rules files checked together; never raises for bad content."""
+    return lint_files(paths, schema)[0]
+
+
+def lint_files(
+    paths: Sequence[Path], schema: ParameterSchema | None = None
+) -> tuple[list[Problem], list[Problem]]:
+    """``(problems, warnings)`` of the rules files checked together.
+
+    Warnings (components that may activate nothing on some path) are looked for only in
+    rules without problems; they never make the rules invalid.
+    """
     sources, problems = _read_all(paths)
-    return problems + _parse_all(sources, schema)[1]
+    programs, found = _parse_all(sources, schema)
+    problems += found
+    if problems:
+        return problems, []
+    return problems, activation_warnings(programs)
 
 
 def load_rules(paths: Sequence[Path], schema: ParameterSchema | None = None) -> RuleSet:

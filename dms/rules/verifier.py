@@ -439,3 +439,66 @@ def outcome_problems(
                     )
                 )
     return sorted(problems, key=lambda p: (p.file, p.line, p.column))
+
+
+def activation_warnings(programs: Iterable[n.Program]) -> list[Problem]:
+    """Components that may activate nothing: some path through them activates nothing.
+
+    A warning, not an error (DESIGN.md: "components that may activate nothing"): the
+    caller's built-in logic decides on such a path, as the seed's ``ObstacleDetected``
+    intends. Run it on rules that :func:`verify` accepts (no cycles, no dead branches), so
+    that every branch can run. The warning points at the first statement on such a path
+    that may activate nothing, typically an ``if`` without an ``else``.
+    """
+    components = {
+        item.name: item
+        for program in programs
+        for item in program.items
+        if isinstance(item, n.Component)
+    }
+    memo: dict[str, n.Pos | None] = {}
+
+    def component_gap(name: str) -> n.Pos | None:
+        """Where ``name`` may activate nothing, or ``None`` when it always activates."""
+        component = components[name]
+        if name not in memo:
+            memo[name] = component.pos  # inside an evaluate cycle: nothing by itself
+            memo[name] = body_gap(component.body, component.pos)
+        return memo[name]
+
+    def body_gap(body: Iterable[n.Stmt], empty: n.Pos) -> n.Pos | None:
+        """A sequence activates something when one of its statements always does."""
+        gaps = []
+        for stmt in body:
+            gap = stmt_gap(stmt)
+            if gap is None:
+                return None
+            gaps.append(gap)
+        return gaps[0] if gaps else empty
+
+    def stmt_gap(stmt: n.Stmt) -> n.Pos | None:
+        if isinstance(stmt, n.Activate):
+            return None
+        if isinstance(stmt, n.Cancel):
+            return stmt.pos
+        if isinstance(stmt, n.Evaluate):
+            return component_gap(stmt.component) if stmt.component in components else stmt.pos
+        if isinstance(stmt, n.Block):
+            return body_gap(stmt.body, stmt.pos)
+        if stmt.else_ is None:
+            return stmt.pos
+        then_gap = stmt_gap(stmt.then)
+        return then_gap if then_gap is not None else stmt_gap(stmt.else_)
+
+    warnings = []
+    for name in components:
+        gap = component_gap(name)
+        if gap is not None:
+            warnings.append(
+                Problem.at(
+                    gap,
+                    f"warning: component '{name}' may activate nothing on a path through "
+                    "here (the caller's built-in logic decides then)",
+                )
+            )
+    return sorted(warnings, key=lambda p: (p.file, p.line, p.column, p.message))
