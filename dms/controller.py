@@ -511,6 +511,8 @@ class Controller:
             user.setdefault("id", self._session.user_id)
         snapshot = self._snapshot
         robot = {**self.deps.robot_state(), **(snapshot.robot_params if snapshot else {})}
+        if self.current is not None:  # what the robot is doing, unless params/robot says
+            robot.setdefault("currenttask", self.current.name)
         env: dict[str, Any] = dict(snapshot.env_params) if snapshot else {}
         if self._now is not None:
             env["time"] = self._hour(self._now)

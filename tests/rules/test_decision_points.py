@@ -107,3 +107,21 @@ component AllowInterruption [
         assert [p.decision.activity for p in pauses] == ["quiz"]
         assert pauses[0].decision.reason == "agenda" and 30 <= pauses[0].t <= 31
         assert notified and notified[0].t <= 31
+
+
+@pytest.mark.parametrize(("activity", "paused"), [("cognitive_stimulation", False), ("quiz", True)])
+def test_the_shipped_rule_keeps_reminders_out_of_cognitive_stimulation(
+    tmp_path: Path, activity: str, paused: bool
+) -> None:
+    """``params.robot.currenttask`` is the running activity, so the example rule works."""
+    shipped = Path(__file__).resolve().parents[2] / "dms/rules/examples/decisions.dmsl"
+    timeline = [
+        "{at: 0, arrive: {user: alice}}",
+        f"{{at: 2, request: {{action: start, activity: {activity}, by: caregiver}}}}",
+        '{at: 3, agenda: {kind: reminder, user: alice, in_s: 27, text: "Pills."}}',
+    ]
+    result = _run(tmp_path, shipped.read_text(encoding="utf-8"), timeline, 45)
+    started = [d for d in _starts(result) if d.decision.activity == activity]
+    assert started and 2 <= started[0].t <= 3
+    pauses = [d.decision.activity for d in result.decisions if d.decision.action == "pause"]
+    assert pauses == ([activity] if paused else [])
