@@ -8,6 +8,7 @@ simulated users.
 
 from __future__ import annotations
 
+import math
 import random
 import zoneinfo
 from collections.abc import Callable
@@ -76,8 +77,13 @@ def build_stack(
     rng: random.Random | None = None,
     with_memory: bool = True,
     robot_state: Callable[[], dict[str, Any]] = dict,
+    retrain: bool = True,
 ) -> Stack:
-    """Open everything ``settings`` names; raise DmsError with one line if anything is wrong."""
+    """Open everything ``settings`` names; raise DmsError with one line if anything is wrong.
+
+    ``retrain=False`` keeps the preference model of the start (the simulator: retraining
+    runs in a thread, and a seeded run must not depend on thread timing).
+    """
     rng = rng or random.Random(settings.seed)
     try:
         motivation = MotivationModel(load_config(settings.motivation), zone_of(settings.timezone))
@@ -111,7 +117,11 @@ def build_stack(
             model = PreferenceModel.train(store)
         except (ProfileError, ValueError):
             model = PreferenceModel.from_seed()
-        chooser = ActivityChooser(model, store)
+        chooser = (
+            ActivityChooser(model, store)
+            if retrain
+            else ActivityChooser(model, store, retrain_every_s=math.inf)
+        )
         questions = QuestionBank.default()
 
         def user_exists(user_id: str) -> bool:

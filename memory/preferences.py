@@ -233,6 +233,8 @@ class ActivityChooser:
         Returns at once; True if a retraining started.
         """
         last = self._last_retrain
+        if self.retrain_every_s == float("inf"):
+            return False  # never (the simulator: a seeded run must not depend on threads)
         if last is not None and (now - last).total_seconds() < self.retrain_every_s:
             return False
         started = self.retrain() is not None

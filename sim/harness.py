@@ -112,6 +112,7 @@ class Simulation:
                 report_error=self._on_error,
                 rng=random.Random(seed),
                 with_memory=with_memory,
+                retrain=False,
             )
         except BaseException:
             self._cleanup_tmp()

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import threading
 from datetime import timedelta
+from pathlib import Path
 from typing import Any
 
 from sqlalchemy import text
@@ -113,3 +114,15 @@ def test_a_failed_retraining_keeps_the_model(store: ProfileStore) -> None:
     with store.engine.begin() as connection:
         connection.execute(text("DROP TABLE activity_scores"))
     assert _retrained(chooser) is model
+
+
+def test_a_chooser_that_never_retrains_keeps_its_model(tmp_path: Path) -> None:
+    """The simulator's chooser: a seeded run must not depend on a training thread."""
+    store = ProfileStore(f"sqlite:///{tmp_path / 'dms.db'}")
+    try:
+        model = PreferenceModel.from_seed()
+        chooser = ActivityChooser(model, store, retrain_every_s=float("inf"))
+        assert chooser.session_ended(NOW) is False
+        assert chooser.model is model and chooser.wait_retrained(0)
+    finally:
+        store.close()
