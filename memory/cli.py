@@ -1,4 +1,4 @@
-"""``dms users list|show|export|erase`` and ``dms db upgrade``.
+"""``dms users list|add|show|export|erase`` and ``dms db upgrade``.
 
 These commands open the daemon's database directly (``--db``, default the daemon's
 file). They work while the daemon runs: SQLite is in WAL mode, so a reader never
@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
+from datetime import UTC, datetime
 from typing import Annotated
 
 import typer
@@ -19,6 +20,7 @@ from sqlalchemy.exc import SQLAlchemyError
 from memory import migrations
 from memory.db import default_url, make_engine
 from memory.errors import ProfileError
+from memory.profile import validate_fields
 from memory.store import ProfileStore
 
 app = typer.Typer(no_args_is_help=True)
@@ -63,6 +65,39 @@ def list_users(db: DbOption = None) -> None:
     with _store(db) as store:
         for user_id in store.list_ids():
             typer.echo(user_id)
+
+
+def _literal(raw: str) -> object:
+    """A JSON literal when ``raw`` parses as one (``72``, ``true``), else the text itself."""
+    try:
+        return json.loads(raw)
+    except ValueError:
+        return raw
+
+
+@app.command("add")
+def add_user(
+    user_id: UserArgument,
+    fields: Annotated[
+        list[str] | None,
+        typer.Option("--set", help="A profile field, NAME=VALUE (e.g. name=Ann, age=81)."),
+    ] = None,
+    db: DbOption = None,
+) -> None:
+    """Register a user before the robot has met them (so that their agenda can be filled),
+    or update the named fields of one it knows."""
+    updates: dict[str, object] = {}
+    for item in fields or []:
+        name, sep, raw = item.partition("=")
+        if not sep or not name.strip():
+            raise ProfileError(f"--set {item!r}: expected NAME=VALUE")
+        updates[name.strip()] = _literal(raw)
+    validate_fields(updates)  # a wrong field or value stores nothing, not even the user
+    now = datetime.now(UTC)
+    with _store(db) as store:
+        store.get_or_create(user_id, now)
+        profile = store.update(user_id, now, **updates) if updates else store.get(user_id)
+    typer.echo(json.dumps(profile.model_dump(mode="json"), indent=2, ensure_ascii=False))
 
 
 @app.command("show")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from datetime import timedelta
+from pathlib import Path
 
 from sqlalchemy import text
 from typer.testing import CliRunner
@@ -67,3 +68,32 @@ def test_unknown_user_is_a_one_line_error(store: ProfileStore, db_url: str) -> N
         assert code != 0
         assert isinstance(error, ProfileNotFound)
         assert str(error) == "no profile for user 'nobody'"
+
+
+def test_users_add_registers_a_user_the_agenda_then_accepts(tmp_path: Path) -> None:
+    url = f"sqlite:///{tmp_path / 'dms.db'}"
+    runner = CliRunner()
+    bad = runner.invoke(app, ["add", "ann", "--set", "age=300", "--db", url])
+    assert bad.exit_code != 0 and "age" in str(bad.exception)
+    assert runner.invoke(app, ["list", "--db", url]).output == ""  # nothing stored
+    added = runner.invoke(app, ["add", "ann", "--set", "name=Ann", "--set", "age=81", "--db", url])
+    assert added.exit_code == 0, added.output
+    profile = json.loads(added.output)
+    assert (profile["name"], profile["age"]) == ("Ann", 81)
+    from agenda.cli import app as agenda_app
+
+    reminder = runner.invoke(
+        agenda_app,
+        [
+            "add",
+            "--user",
+            "ann",
+            "--reminder",
+            "The doctor",
+            "--at",
+            "2030-01-01T17:00",
+            "--db",
+            url,
+        ],
+    )
+    assert reminder.exit_code == 0, reminder.output
