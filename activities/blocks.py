@@ -423,6 +423,10 @@ class Ask(Block):
         if self.misheard:
             text = f"{self.args['retry_text']} {text}"
             self.misheard = False
+        if self.choices() and self.rt.ctx.params().get("user", {}).get("interaction_style") == (
+            "screen"
+        ):
+            text = f"{text} Please answer on the screen."  # Table 2: voice did not work for them
         self.said = self.command("speech", "say", speech_args(self.rt, text, None), now)
         if self.choices():
             self.command("screen", "show", {"text": self.prompt(), "choices": self.choices()}, now)

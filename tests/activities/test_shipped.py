@@ -262,3 +262,16 @@ def test_the_speaking_rate_comes_from_the_voice_settings_rule_and_slows_the_robo
     assert slow > bench.robot.duration(speech[0].model_copy(update={"args": {"text": "x"}}))
     normal = speech[0].model_copy(update={"args": {"text": speech[0].args["text"]}})
     assert slow == pytest.approx(0.3 + (bench.robot.duration(normal) - 0.3) * 2.0)
+
+
+@pytest.mark.parametrize("style", ["voice", "screen"])
+def test_a_quiz_question_points_a_screen_user_to_the_screen(bench: Bench, style: str) -> None:
+    bench.user["interaction_style"] = style
+    activity = bench.start(bench.create("quiz"))
+    bench.advance(activity, 20)
+    questions = [
+        c.args["text"] for c in bench.commands if c.channel == "speech" and "?" in c.args["text"]
+    ]
+    assert questions
+    hinted = questions[0].endswith("Please answer on the screen.")
+    assert hinted is (style == "screen")
