@@ -20,16 +20,23 @@ from memory import Profile, ProfileError, ProfileStore, StoreUnavailable
 log = logging.getLogger(__name__)
 
 RETRY_EVERY_S = 5.0
+OUTBOX_SIZE = 10_000
+"""Writes kept during an outage; beyond it the oldest is lost (and reported)."""
 
 
 class ProfileService:
     """Profile loads and writes for the controller, resilient to database outages."""
 
-    def __init__(self, store: ProfileStore, report: Callable[[str, str], None]) -> None:
+    def __init__(
+        self,
+        store: ProfileStore,
+        report: Callable[[str, str], None],
+        outbox_size: int = OUTBOX_SIZE,
+    ) -> None:
         self.store = store
         self._report = report
         self._cache: dict[str, Profile] = {}
-        self._outbox: deque[tuple[str, tuple[Any, ...], dict[str, Any]]] = deque(maxlen=10_000)
+        self._outbox: deque[tuple[str, tuple[Any, ...], dict[str, Any]]] = deque(maxlen=outbox_size)
         self._last_retry: datetime | None = None
 
     def load(self, user_id: str, now: datetime) -> Profile | None:
@@ -51,13 +58,13 @@ class ProfileService:
         Queued writes go first: a write is never overtaken by a later one.
         """
         if self._outbox and not self._replay():
-            self._outbox.append((method, args, kwargs))
+            self._queue(method, args, kwargs)
             return None
         try:
             result = getattr(self.store, method)(*args, **kwargs)
         except StoreUnavailable as error:
             self._report("memory", f"{method} failed, will retry: {error}")
-            self._outbox.append((method, args, kwargs))
+            self._queue(method, args, kwargs)
             return None
         except ProfileError as error:
             self._report("memory", f"{method} refused: {error}")
@@ -65,6 +72,13 @@ class ProfileService:
         if isinstance(result, Profile):
             self._cache[result.user_id] = result
         return result
+
+    def _queue(self, method: str, args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
+        """Keep a write for later; a full outbox loses its oldest write, and says so."""
+        if len(self._outbox) == self._outbox.maxlen:
+            dropped = self._outbox[0][0]
+            self._report("memory", f"outbox full: the oldest queued {dropped} is lost")
+        self._outbox.append((method, args, kwargs))
 
     def retry(self, now: datetime) -> None:
         """Replay queued writes, oldest first, at most every RETRY_EVERY_S."""

@@ -119,3 +119,20 @@ def test_a_refused_write_is_reported_and_not_queued(
     assert service.pending_writes == 0
     ((key, line),) = reports
     assert key == "memory" and line.startswith("record_feedback refused: score:")
+
+
+def test_a_full_outbox_says_which_write_it_loses(
+    store: ProfileStore, reports: list[tuple[str, str]]
+) -> None:
+    service = ProfileService(store, lambda key, line: reports.append((key, line)), outbox_size=2)
+    service.load("ann", NOW)
+    Outage(store).begin()
+    service.call("record_feedback", "ann", "quiz", 0.5, NOW)
+    service.call("record_answer", "ann", "q1", "yes", NOW)
+    service.call("record_feedback", "ann", "jokes", 1.0, NOW)
+    assert reports[-1] == ("memory", "outbox full: the oldest queued record_feedback is lost")
+    assert service.pending_writes == 2
+    Outage(store).end()
+    service.retry(LATER)
+    scores = store.get("ann").scores
+    assert "jokes" in scores and "quiz" not in scores  # the lost write is the oldest one
