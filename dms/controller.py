@@ -66,7 +66,7 @@ from dms.profiles import ProfileService
 from dms.rules import LiveRules
 from managers import Manager, ManagerReply, ManagerStatus, make_managers
 from memory import ActivityChooser, Profile, Question, QuestionBank
-from motivation import MotivationModel, MotivationState, Percepts, simulate
+from motivation import MotivationModel, MotivationState, Percepts, Stimuli, simulate
 
 log = logging.getLogger(__name__)
 
@@ -176,6 +176,7 @@ class Controller:
         self._last_step: datetime | None = None
         self._motivation: MotivationState | None = None
         self._percepts: Percepts | None = None
+        self._stimuli: Stimuli | None = None
         self.current: Running | None = None
         self.suspended: Running | None = None
         self.dialog: Dialog | None = None
@@ -249,7 +250,9 @@ class Controller:
             env=snapshot.env_params if keys.PARAMS_ENV in snapshot.values else None,
             touches=tuple(self._touches),
         )
-        stimuli = model.stimuli(percepts)
+        if percepts != self._percepts or self._stimuli is None:
+            self._stimuli = model.stimuli(percepts)  # the room rarely changes between ticks
+        stimuli = self._stimuli
         self._percepts = percepts
         running = self.current.name if self.current and not self.current.paused else None
         self._motivation = model.step(self._motivation, dt, stimuli, running, now)

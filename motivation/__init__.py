@@ -12,7 +12,7 @@ from motivation.config import (
     StimulusConfig,
     load_config,
 )
-from motivation.model import NO_DOMINANT, MotivationModel, MotivationState, local_seconds
+from motivation.model import NO_DOMINANT, MotivationModel, MotivationState
 from motivation.stimuli import Percepts, Stimuli
 from motivation.trajectory import Run, simulate
 
@@ -29,6 +29,5 @@ __all__ = [
     "Stimuli",
     "StimulusConfig",
     "load_config",
-    "local_seconds",
     "simulate",
 ]

@@ -73,14 +73,8 @@ class DriveTable:
         )
 
 
-def local_seconds(now: datetime, zone: tzinfo) -> float:
-    """``now`` as seconds on the local wall clock, so that ``t % 86400`` is the time of day."""
-    offset = now.astimezone(zone).utcoffset()
-    return now.timestamp() + (offset.total_seconds() if offset is not None else 0.0)
-
-
 def day_seconds(now: datetime, zone: tzinfo) -> float:
-    """Seconds since local midnight at ``now``: ``local_seconds`` modulo a day, but exact.
+    """Seconds since local midnight at ``now``, the clock of the daily rhythm.
 
     Seconds since 1970 as a float resolve only 2.4e-7 s, so ``end - dt`` of a step
     rounds; at a drive moving a point a second that was 1e-6 points a step. Small
@@ -130,7 +124,6 @@ class MotivationModel:
         self._drive_sources = {name: d.stimuli for name, d in drives.items()}
         self._omega = self.table.omega.tolist()
         self._omega_total = float(sum(self._omega))
-        self._last_stimuli: tuple[Percepts, Stimuli] | None = None
 
     # ------------------------------------------------------------------ inputs
 
@@ -143,9 +136,6 @@ class MotivationModel:
 
     def stimuli(self, percepts: Percepts) -> Stimuli:
         """The stimuli per drive for what is perceived now."""
-        last = self._last_stimuli
-        if last is not None and last[0] == percepts:
-            return last[1]  # the room rarely changes from one tick to the next
         sources = source_levels(percepts, self.config.stimuli)
         levels = [
             max((sources[s] for s in self._drive_sources[name]), default=0.0) for name in self.names
@@ -154,13 +144,11 @@ class MotivationModel:
             sum(rate * sources[s] for s, rate in self._relief_per_source[name].items())
             for name in self.names
         ]
-        stimuli = Stimuli(
+        return Stimuli(
             np.array(levels, dtype=np.float64),
             np.array(relief, dtype=np.float64),
             self.table.touch_relief * caress_count(percepts),
         )
-        self._last_stimuli = (percepts, stimuli)
-        return stimuli
 
     def no_stimuli(self) -> Stimuli:
         """Nothing perceived: an empty room at an unknown light level."""

@@ -33,7 +33,6 @@ from motivation.model import (
     MotivationModel,
     MotivationState,
     day_seconds,
-    local_seconds,
 )
 from motivation.stimuli import Stimuli
 
@@ -159,8 +158,8 @@ changes are always further apart, so none is missed."""
 
 def _offset(model: MotivationModel, start: datetime, tick_s: float, tick: int) -> float:
     """The zone's UTC offset at the end of tick number ``tick`` (1-based), in seconds."""
-    now = start + timedelta(seconds=tick * tick_s)
-    return local_seconds(now, model.zone) - now.timestamp()
+    offset = (start + timedelta(seconds=tick * tick_s)).astimezone(model.zone).utcoffset()
+    return offset.total_seconds() if offset is not None else 0.0
 
 
 def _same_offset(
