@@ -50,6 +50,7 @@ from agenda.schedule import (
     zone,
 )
 from dms.activity_names import ACTIVITIES
+from dms.ids import InvalidIdentifier, check_identifier
 from memory.db import make_engine
 from memory.store import register_user_data
 
@@ -61,7 +62,6 @@ RETRY_AFTER_S = 5
 MAX_LEAD_S = 86400
 MAX_GRACE_S = 7 * 86400
 MAX_TEXT = 500
-_USER_CHARS = frozenset("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-.")
 
 
 @dataclass(frozen=True, slots=True)
@@ -372,8 +372,11 @@ class Agenda:
         if now.tzinfo is None:
             raise AgendaError("now must be timezone-aware")
         user_id = spec.user_id
-        if not user_id or len(user_id) > 64 or not set(user_id) <= _USER_CHARS:
-            raise AgendaError(f"invalid user id {user_id!r} (letters, digits, _ - . up to 64)")
+        try:
+            if check_identifier(user_id, "user_id") != user_id:
+                raise InvalidIdentifier("user_id: has white space around it")
+        except InvalidIdentifier as error:
+            raise AgendaError(f"invalid user id {user_id!r:.80}: {error}") from None
         activity, text = spec.activity, spec.text
         if spec.kind == "event":
             if not activity:

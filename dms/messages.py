@@ -15,12 +15,12 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, StringConstraints, field_validator
 
 from dms.activity_names import ACTIVITIES
+from dms.ids import Identifier
 
 ROBOT_ID_PATTERN = r"^[a-z0-9_-]+$"
 
 Unit = Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)]
 ShortText = Annotated[str, StringConstraints(max_length=4096)]
-Identifier = Annotated[str, StringConstraints(min_length=1, max_length=128)]
 ParamName = Annotated[str, StringConstraints(pattern=r"^[A-Za-z_][A-Za-z0-9_]{0,63}$")]
 ParamValue = Annotated[str, StringConstraints(max_length=1024)] | bool | int | float
 
@@ -99,7 +99,8 @@ class Request(Inbound):
 
     action: RequestAction
     activity: str | None = None
-    by: Annotated[str, StringConstraints(max_length=128)] | None = None
+    by: Identifier | None = None
+    """Who asked (an app, a caregiver): an identifier, so it cannot forge a log line."""
 
     @field_validator("activity")
     @classmethod

@@ -19,6 +19,7 @@ from sqlalchemy.engine import make_url
 from sqlalchemy.exc import ArgumentError, DBAPIError, IntegrityError, SQLAlchemyError
 from sqlalchemy.orm import Session, sessionmaker
 
+from dms.ids import InvalidIdentifier, check_identifier
 from memory import migrations
 from memory.db import as_url, default_url, make_engine
 from memory.errors import ProfileError, ProfileNotFound, SchemaOutOfDate, StoreUnavailable
@@ -61,10 +62,13 @@ def _check_time(name: str, value: Any) -> datetime:
 
 
 def _check_user_id(user_id: Any) -> str:
-    if not isinstance(user_id, str) or not user_id.strip() or len(user_id) > 200:
-        raise ProfileError(
-            f"user_id: must be a non-empty string of at most 200 characters (got {user_id!r:.60})"
-        )
+    """The id rule of the bus (:mod:`dms.ids`), and already trimmed: a store never renames."""
+    try:
+        trimmed = check_identifier(user_id, "user_id")
+    except InvalidIdentifier as error:
+        raise ProfileError(str(error)) from None
+    if trimmed != user_id:
+        raise ProfileError(f"user_id: has white space around it (got {user_id!r:.60})")
     return user_id
 
 

@@ -224,7 +224,9 @@ def test_upcoming_lists_next_fire_times_sorted_and_limited(agenda: Agenda) -> No
 
 BAD: list[tuple[dict[str, Any], str]] = [
     ({"user_id": ""}, "invalid user id"),
-    ({"user_id": "ann smith"}, "invalid user id"),
+    ({"user_id": "ann\nsmith"}, "invalid user id"),
+    ({"user_id": "ann/smith"}, "invalid user id"),
+    ({"user_id": " ann"}, "invalid user id"),
     ({"kind": "event", "text": None}, "needs an activity"),
     ({"kind": "event", "text": None, "activity": "juggling"}, "unknown activity"),
     ({"kind": "event", "activity": "quiz"}, "has no text"),
