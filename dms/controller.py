@@ -45,6 +45,7 @@ from dms.dialog import (
 )
 from dms.dialog import SOURCE as DIALOG_SOURCE
 from dms.expression import ExpressionArbiter
+from dms.faults import FaultBarrier
 from dms.inputs import InputBoard, InputSnapshot
 from dms.messages import (
     ActivityState,
@@ -187,6 +188,9 @@ class Controller:
         self._requests: list[tuple[str, ChosenBy | None, str]] = []
         self._touches: list[tuple[str, str]] = []
         self._state: DmsState | None = None
+        self._barrier = FaultBarrier(
+            deps.report_error, clock=lambda: self._now.timestamp() if self._now else 0.0
+        )
 
     # ------------------------------------------------------------------ the tick
 
@@ -200,19 +204,34 @@ class Controller:
         user = snapshot.values.get(keys.PERCEPTION_USER)
         self._user = user if isinstance(user, UserPerception) else None
         self._touches = []
+        guard = self._barrier.step
         self._handle_events(snapshot, now)
-        self._step_motivation(snapshot, now)
-        self.deps.expression.update(now)
+        with guard("motivation", self._user):
+            self._step_motivation(snapshot, now)
+        with guard("robot"):
+            self.deps.expression.update(now)
         if self.deps.profiles is not None:
-            self.deps.profiles.retry(now)
-        self._track_user(now)
-        self._advance_dialog(now)
+            with guard("memory"):
+                self.deps.profiles.retry(now)
+        with guard("user", self._user):
+            self._track_user(now)
+        with guard("dialog", self.dialog and self.dialog.kind.value) as outcome:
+            self._advance_dialog(now)
+        if outcome.failed:
+            self._drop_dialog(now)
         if self.dialog is None:
-            self._tick_activities(now)
+            with guard("activity", self.current and self.current.name) as outcome:
+                self._tick_activities(now)
+            if outcome.failed:
+                self._abandon_current(now, "activity")
             if self.current is not None:
-                self._check_cancel_reasons(now)
+                with guard("cancel", self.current.name) as outcome:
+                    self._check_cancel_reasons(now)
+                if outcome.failed:
+                    self._abandon_current(now, "cancel")
             if self.current is None and self.dialog is None:
-                self._choose(now)
+                with guard("choose", self._ready_user()):
+                    self._choose(now)
         state = self._state = self.build_state(now)
         self.counters.decisions += len(self._decisions)
         return TickRecord(self._tick, now, urgent, tuple(self._decisions), state)
@@ -226,10 +245,12 @@ class Controller:
             self.deps.expression.interrupt_source(DIALOG_SOURCE, now)
         for running in (self.current, self.suspended):
             if running is not None:
-                self._cancel(running, "shutdown", now)
+                with self._barrier.step("shutdown", running.name):
+                    self._cancel(running, "shutdown", now)
         self.current = self.suspended = None
         if self._session is not None:
-            self._end_session(now)
+            with self._barrier.step("shutdown", self._session.user_id):
+                self._end_session(now)
         state = self._state = self.build_state(now)
         return TickRecord(self._tick, now, False, tuple(self._decisions), state)
 
@@ -284,21 +305,25 @@ class Controller:
 
     def _handle_events(self, snapshot: InputSnapshot, now: datetime) -> None:
         for event in snapshot.events:
-            message = event.message
-            if isinstance(message, Request):
-                self._on_request(message, now)
-            elif isinstance(message, Touch):
-                self._touches.append((message.part, message.kind))
-                self._on_touch(message, now)
-            elif isinstance(message, Speech):
-                if message.confidence < self.settings.min_speech_confidence:
-                    log.info(
-                        "not understood (confidence %.2f): %r", message.confidence, message.text
-                    )
-                    continue
-                self._on_answer(message.text, "voice", message, now)
-            elif isinstance(message, ScreenChoice):
-                self._on_answer(message.choice, "screen", message, now)
+            with self._barrier.step(f"event/{event.key}", event.message):
+                self._handle_event(event.message, now)
+
+    def _handle_event(self, message: object, now: datetime) -> None:
+        """One urgent input: a request, a touch, an utterance or a screen choice."""
+        if isinstance(message, Request):
+            self._on_request(message, now)
+        elif isinstance(message, Touch):
+            self._touches.append((message.part, message.kind))
+            self._on_touch(message, now)
+        elif isinstance(message, Speech):
+            if message.confidence < self.settings.min_speech_confidence:
+                log.info(
+                    "not understood (confidence %.2f): %r", message.confidence, message.text
+                )
+                return
+            self._on_answer(message.text, "voice", message, now)
+        elif isinstance(message, ScreenChoice):
+            self._on_answer(message.choice, "screen", message, now)
 
     def _on_request(self, request: Request, now: datetime) -> None:
         by = request.by or "request"
@@ -401,6 +426,45 @@ class Controller:
         else:
             why = f"the user said {dialog.answer!r}" if dialog.answer else "no answer"
             self._resume(running, "confirm_cancel", now, why)
+
+    def _drop_dialog(self, now: datetime) -> None:
+        """After a fault in the dialog step: close the dialog, silence it, go on."""
+        self.dialog = None
+        self._question = None
+        with self._barrier.step("dialog/close"):
+            self.deps.expression.interrupt_source(DIALOG_SOURCE, now)
+        running = self.current
+        if running is not None and running.paused and self.suspended is not running:
+            with self._barrier.step("dialog/resume", running.name):
+                self._resume(running, "confirm_cancel", now, "the dialog failed")
+
+    def _abandon_current(self, now: datetime, step: str) -> None:
+        """After a fault while running or checking the activity: stop it as failed, so
+        that what the state says and what the robot does agree again."""
+        running = self.current
+        if running is None:
+            return
+        self.current = None
+        with self._barrier.step(f"{step}/stop", running.name):
+            self.managers[running.manager].cancel(now)
+        with self._barrier.step(f"{step}/stop", running.name):
+            self.deps.expression.interrupt_source(f"activity:{running.name}", now)
+        self.counters.activity_failures += 1
+        self._decide(
+            "fail", running.name, "activity_error", running.chosen_by, f"{step} step failed", now
+        )
+        with self._barrier.step(f"{step}/record", running.name):
+            self._finish_user_activity(running, "failed", now, ask_feedback=False)
+        if self.suspended is not None and self.dialog is None:
+            suspended, self.suspended = self.suspended, None
+            self.current = suspended
+            with self._barrier.step(f"{step}/resume", suspended.name):
+                self._resume(suspended, "activity_error", now, f"after the {running.name}")
+
+    @property
+    def faults(self) -> int:
+        """Exceptions the fault barrier contained since the start."""
+        return len(self._barrier.faults)
 
     # ------------------------------------------------------------------ user presence
 
