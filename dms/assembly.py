@@ -45,6 +45,20 @@ class Stack:
     library: BehaviorLibrary
     warnings: list[tuple[str, str]] = field(default_factory=list)
     """``(key, line)`` found while loading, for ``dms/errors`` once the bus is open."""
+    chooser: ActivityChooser | None = None
+    train_when_ready: bool = False
+    """The chooser decides by the seed model until :meth:`when_ready` trains it from the store."""
+
+    def when_ready(self) -> None:
+        """Once the daemon is ready (``alive/dms`` declared): train the preference model
+        from the store in a background thread; the chooser swaps it in when done.
+
+        Training is work that can wait: until then the chooser decides by the seed
+        model, so a restarted daemon is back at once (issue 14).
+        """
+        if self.train_when_ready and self.chooser is not None:
+            self.train_when_ready = False
+            self.chooser.retrain()
 
     def close(self) -> None:
         if self.store is not None:
@@ -81,8 +95,10 @@ def build_stack(
 ) -> Stack:
     """Open everything ``settings`` names; raise DmsError with one line if anything is wrong.
 
-    ``retrain=False`` keeps the preference model of the start (the simulator: retraining
-    runs in a thread, and a seeded run must not depend on thread timing).
+    ``retrain=False`` trains the preference model here, once, and keeps it (the simulator:
+    retraining runs in a thread, and a seeded run must not depend on thread timing).
+    With ``retrain=True`` (the daemon) the chooser starts on the seed model and
+    :meth:`Stack.when_ready` trains from the store in the background.
     """
     rng = rng or random.Random(settings.seed)
     try:
@@ -113,10 +129,13 @@ def build_stack(
         except ProfileError as error:
             raise ConfigError(f"database {url}: {error}") from None
         profiles = ProfileService(store, report_error)
-        try:
-            model = PreferenceModel.train(store)
-        except (ProfileError, ValueError):
-            model = PreferenceModel.from_seed()
+        if retrain:
+            model = PreferenceModel.from_seed()  # the store's model: Stack.when_ready
+        else:  # the simulator: trained here, so that a seeded run never depends on threads
+            try:
+                model = PreferenceModel.train(store)
+            except (ProfileError, ValueError):
+                model = PreferenceModel.from_seed()
         chooser = (
             ActivityChooser(model, store)
             if retrain
@@ -155,4 +174,15 @@ def build_stack(
     controller = Controller(
         deps, inputs, settings.controller, settings.robot_id, rng, timezone_hour=hour
     )
-    return Stack(controller, inputs, expression, store, agenda, rules, library, warnings)
+    return Stack(
+        controller,
+        inputs,
+        expression,
+        store,
+        agenda,
+        rules,
+        library,
+        warnings,
+        chooser=chooser,
+        train_when_ready=retrain and chooser is not None,
+    )

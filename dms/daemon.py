@@ -175,6 +175,7 @@ class Daemon:
                 log.info("agenda item %s fell due while the daemon was down", item.item_id)
         self._run_tick(urgent=False)
         self.bus.declare_alive()
+        self.stack.when_ready()  # work that can wait (training) starts after ready
 
     def _run_tick(self, urgent: bool) -> TickRecord:
         if self._reload.is_set():

@@ -1,0 +1,96 @@
+"""The daemon trains its preference model after it is ready (issue 14, item 2).
+
+Until then it decides by the seed model; the simulator still trains before its first
+tick, so that a seeded run never depends on a thread.
+"""
+
+from __future__ import annotations
+
+import random
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from dms.activity_names import ENTERTAINMENT_ACTIVITIES
+from dms.assembly import build_stack
+from dms.config import Settings
+from dms.daemon import Daemon
+from dms.local_bus import InMemoryBus
+from memory import PreferenceModel, ProfileStore
+from sim.robot import SimRobot
+from tests.memory.conftest import NOW
+
+FEATURES = {"age": 30, "hobbies": "reading", "sex": "male", "education": "university"}
+
+
+def _store_fans(url: str) -> str:
+    """100 stored users who like only one activity, not the seed model's favorite."""
+    seed_top = PreferenceModel.from_seed().predict_ranking(FEATURES, random.Random(0))[0]
+    favorite = "bingo" if seed_top != "bingo" else "dance"
+    store = ProfileStore(url)
+    for index in range(100):
+        user = f"fan{index}"
+        store.get_or_create(user, NOW)
+        store.update(user, NOW, **FEATURES)
+        for activity in ENTERTAINMENT_ACTIVITIES:
+            store.record_feedback(user, activity, 1.0 if activity == favorite else 0.0, NOW)
+    store.close()
+    return favorite
+
+
+def test_the_daemon_decides_by_the_seed_model_until_ready_then_by_the_trained_one(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    url = f"sqlite:///{tmp_path / 'dms.db'}"
+    favorite = _store_fans(url)
+    bus = InMemoryBus()
+    daemon = Daemon(Settings(db=url, seed=1), print_decisions=False, bus=bus)
+    chooser = daemon.stack.chooser
+    assert chooser is not None
+    try:
+        seed = PreferenceModel.from_seed()
+        assert chooser.model is seed  # the fallback: nothing trained on the start path
+        assert chooser.model.predict_ranking(FEATURES, random.Random(0))[0] != favorite
+        alive_when_training: list[bool] = []
+        retrain = chooser.retrain
+
+        def spy() -> object:
+            alive_when_training.append(bus.alive)
+            return retrain()
+
+        monkeypatch.setattr(chooser, "retrain", spy)
+        daemon.start()
+        assert alive_when_training == [True]  # training started once, after alive/dms
+        assert chooser.wait_retrained(60)
+        assert chooser.model.training_size > seed.training_size
+        assert chooser.model.predict_ranking(FEATURES, random.Random(0))[0] == favorite
+    finally:
+        daemon.close()
+
+
+def test_the_simulator_trains_before_its_first_tick(tmp_path: Path) -> None:
+    url = f"sqlite:///{tmp_path / 'dms.db'}"
+    favorite = _store_fans(url)
+    stack = build_stack(
+        Settings(db=url, seed=1),
+        SimRobot(rng_seed=1),
+        lambda command: None,
+        lambda key, error: None,
+        retrain=False,
+    )
+    try:
+        assert stack.chooser is not None
+        assert stack.chooser.model.predict_ranking(FEATURES, random.Random(0))[0] == favorite
+        stack.when_ready()  # nothing left to do: no thread
+        assert stack.chooser.wait_retrained(0)
+    finally:
+        stack.close()
+
+
+def test_importing_the_daemon_loads_neither_scikit_learn_nor_matplotlib() -> None:
+    heavy = "('sklearn', 'scipy', 'matplotlib', 'pandas')"
+    code = f"import sys, dms.daemon, dms.cli; print(sorted(m for m in {heavy} if m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
