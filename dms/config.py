@@ -38,18 +38,48 @@ _USER_INITIATIVE: dict[Literal["high", "moderate", "low", "unknown"], float] = {
 }
 
 
+_RATE_CAP_PER_S: dict[str, float | None] = {
+    "perception/user": 100.0,
+    "perception/touch": 50.0,
+    "perception/speech": 50.0,
+    "perception/screen": 50.0,
+    "params/robot": 50.0,
+    "params/env": 50.0,
+    "request": 50.0,
+    "robot/feedback": 500.0,
+}
+"""Far above what a camera, a microphone or an app sends; a flood beyond is dropped."""
+
+
 class InputSettings(_Section):
     stale_after_s: dict[str, float | None] = Field(default_factory=lambda: _STALE_AFTER_S.copy())
+    rate_cap_per_s: dict[str, float | None] = Field(
+        default_factory=lambda: _RATE_CAP_PER_S.copy()
+    )
+    """Messages a second admitted per input key (None: no cap); the rest are dropped and
+    counted, and the counts reported on ``dms/errors`` once a second."""
 
-    @field_validator("stale_after_s")
+    @field_validator("stale_after_s", "rate_cap_per_s")
     @classmethod
     def _known_keys(cls, value: dict[str, float | None]) -> dict[str, float | None]:
-        for key, seconds in value.items():
+        for key, amount in value.items():
             if key not in INPUT_KEYS:
                 raise ValueError(f"{key!r} is not an input key")
-            if seconds is not None and seconds <= 0:
-                raise ValueError(f"{key}: must be > 0 seconds")
+            if amount is not None and amount <= 0:
+                raise ValueError(f"{key}: must be > 0")
         return value
+
+    def rate_caps(self) -> dict[str, float]:
+        """The caps in force: the defaults, overridden by the file, without the None ones."""
+        merged = {**_RATE_CAP_PER_S, **self.rate_cap_per_s}
+        return {key: rate for key, rate in merged.items() if rate is not None}
+
+
+class PrivacySettings(_Section):
+    serve_profiles: bool = False
+    """Answer ``users/*`` and ``agenda/*`` queries from other processes. Off by default:
+    a resident's data leaves the daemon only when a deployment says so (and, secured,
+    only to the admin role)."""
 
 
 class ControllerSettings(_Section):
@@ -72,6 +102,10 @@ class ControllerSettings(_Section):
     """A robot command started but not done within this (plus a media's length) fails it."""
     min_speech_confidence: float = Field(0.5, ge=0.0, le=1.0)
     """An utterance recognized with less confidence is not understood (the question waits)."""
+    offline_after_unacked: int = Field(3, ge=1)
+    """Commands in a row the robot never acknowledges before it is marked offline."""
+    offline_retry_max_s: float = Field(300.0, gt=0.0)
+    """While offline, an activity is tried again after a wait that doubles up to this."""
 
     @field_validator("user_initiative")
     @classmethod
@@ -106,6 +140,7 @@ class Settings(_Section):
     controller: ControllerSettings = Field(default_factory=ControllerSettings)
     rules: RulesSettings = Field(default_factory=RulesSettings)
     behaviors: BehaviorsSettings = Field(default_factory=BehaviorsSettings)
+    privacy: PrivacySettings = Field(default_factory=PrivacySettings)
     motivation: dict[str, Any] = Field(default_factory=dict)
     """Validated by the motivation package's own model."""
     source: Path | None = Field(default=None, exclude=True)

@@ -18,6 +18,7 @@ from collections.abc import Callable
 from types import FrameType
 from typing import Any
 
+from activities import reload_rules_and_behaviors
 from dms import keys
 from dms.assembly import Stack, build_stack
 from dms.bus import ZenohBus, make_config
@@ -25,20 +26,42 @@ from dms.clock import Clock, RealClock, Ticker, iso
 from dms.config import Settings
 from dms.controller import TickRecord
 from dms.errors import DmsError
+from dms.ids import InvalidIdentifier, check_identifier, printable
 from dms.inputs import InputRejected, parse_input
 from dms.local_bus import InMemoryBus
-from dms.messages import Decision, ErrorReport, RobotCommand, RobotFeedback
+from dms.messages import (
+    Decision,
+    DmsState,
+    ErrorReport,
+    Request,
+    RobotCommand,
+    RobotFeedback,
+)
 from dms.ports import RobotPort
+from dms.rate_caps import RateCaps
+from dms.reloader import Reloader
 from dms.robot_link import ZenohRobot
 
 log = logging.getLogger(__name__)
 
 
+QueryHandler = Callable[[str, bytes | None], tuple[bool, Any]]
+
+NOT_SERVED = (
+    "personal data is not served to other processes: set [privacy] serve_profiles = true"
+    " (and secure the bus: dms secure init)"
+)
+
+
 def format_decision(decision: Decision) -> str:
-    """One console line per decision: time, action, activity, reason, who, why."""
+    """One console line per decision: time, action, activity, reason, who, why.
+
+    The detail may quote other processes (a request's ``by``, an utterance): its control
+    characters are escaped, so that it cannot forge a line of the console log.
+    """
     who = f" by {decision.chosen_by}" if decision.chosen_by else ""
     what = f" {decision.activity}" if decision.activity else ""
-    detail = f" ({decision.detail})" if decision.detail else ""
+    detail = f" ({printable(decision.detail)})" if decision.detail else ""
     return f"{decision.time[11:23]} {decision.action:<8}{what} [{decision.reason}{who}]{detail}"
 
 
@@ -62,7 +85,7 @@ class Daemon:
         )
         self.ticker = Ticker(self.clock, settings.controller.tick_period_s)
         self._lock = threading.Lock()
-        self._reload = threading.Event()
+        self.rate_caps = RateCaps(settings.inputs.rate_caps())
         self.errors_published = 0
         robot: RobotPort
         self.zenoh_robot: ZenohRobot | None = None
@@ -80,23 +103,42 @@ class Daemon:
             report_error=self.report_error,
             rng=random.Random(settings.seed),
         )
+        library, rules = self.stack.library, self.stack.rules
+        self.reloader = Reloader(
+            lambda: reload_rules_and_behaviors(library, rules), self.report_error
+        )
 
     # -------------------------------------------------------------- bus callbacks
 
     def _publish_command(self, command: RobotCommand) -> None:
         self.bus.publish(keys.ROBOT_COMMAND, command.model_dump(mode="json"))
         if self.print_decisions and command.channel == "speech" and command.action == "say":
-            self._said.append(f"  {self.settings.robot_id} says {command.args.get('text', '')!r}")
+            said = printable(str(command.args.get("text", "")), 500)
+            self._said.append(f"  {self.settings.robot_id} says {said!r}")
 
     def report_error(self, key: str, error: str) -> None:
         """Publish one problem on ``dms/errors`` (thread-safe)."""
         self.errors_published += 1
         report = ErrorReport(key=key, error=error, time=iso(self.clock.now()))
-        log.warning("%s: %s", key, error)
+        log.warning("%s: %s", key, printable(error, 1000))
         self.bus.publish(keys.DMS_ERRORS, report.model_dump(mode="json"))
 
     def on_input(self, key: str, raw: bytes) -> None:
-        """Validate one input (Zenoh thread); wake the loop for urgent ones."""
+        """Validate one input (Zenoh thread); wake the loop for urgent ones.
+
+        Over its key's rate cap a message is dropped unread (counted, reported once a
+        second by the loop). A ``reload_rules`` request only asks the reloader, which
+        serves any number of them with one reload in the background.
+        """
+        if not self.rate_caps.admit(key, self.clock.monotonic()):
+            return
+        try:
+            self._take_input(key, raw)
+        except Exception as error:  # a Zenoh callback must never die on one message
+            log.exception("input on %s", key)
+            self.report_error(key, f"not handled: {type(error).__name__}: {error}")
+
+    def _take_input(self, key: str, raw: bytes) -> None:
         try:
             message = parse_input(key, raw)
         except InputRejected as error:
@@ -106,6 +148,9 @@ class Daemon:
         if isinstance(message, RobotFeedback):
             if self.zenoh_robot is not None:
                 self.zenoh_robot.feed(message)
+            return
+        if isinstance(message, Request) and message.action == "reload_rules":
+            self.reloader.request()
             return
         self.stack.inputs.accept(key, message, self.clock.monotonic())
         if key in keys.URGENT_INPUTS:
@@ -119,28 +164,54 @@ class Daemon:
         state = self.stack.controller.state
         if state is None:
             return False, {"error": "no tick yet"}
-        return True, state.model_dump(mode="json")
+        return True, self._stamped(state).model_dump(mode="json")
 
     def _query_users(self, key: str, _payload: bytes | None) -> tuple[bool, Any]:
         store = self.stack.store
+        if not self.settings.privacy.serve_profiles:
+            return False, {"error": NOT_SERVED}
         if store is None:
             return False, {"error": "no profile store"}
         user_id = key[len(keys.USERS_PREFIX) :]
         try:
             if user_id in ("*", "**", ""):
                 return True, {"users": store.list_ids()}
-            return True, store.export(user_id)
-        except DmsError as error:
+            return True, store.export(check_identifier(user_id, "user id"))
+        except (DmsError, InvalidIdentifier) as error:
             return False, {"error": str(error)}
 
     def _query_agenda(self, key: str, payload: bytes | None) -> tuple[bool, Any]:
         agenda = self.stack.agenda
+        if not self.settings.privacy.serve_profiles:
+            return False, {"error": NOT_SERVED}
         if agenda is None:
             return False, {"error": "no agenda"}
         from agenda.zenoh_api import handle_query
 
+        user_id = key[len(keys.AGENDA_PREFIX) :]
+        if user_id not in ("*", "**", ""):
+            try:
+                user_id = check_identifier(user_id, "user id")
+            except InvalidIdentifier as error:
+                return False, {"error": str(error)}
         with self._lock:
-            return handle_query(agenda, key[len(keys.AGENDA_PREFIX) :], payload, self.clock.now())
+            return handle_query(agenda, user_id, payload, self.clock.now())
+
+    def _guarded(self, key: str, handler: QueryHandler) -> QueryHandler:
+        """``handler`` that answers every query: an exception becomes an error reply
+        (and one line on ``dms/errors``), never silence and never a dead callback."""
+
+        def serve(query_key: str, payload: bytes | None) -> tuple[bool, Any]:
+            try:
+                return handler(query_key, payload)
+            except RecursionError:
+                return False, {"error": "payload nested too deeply"}
+            except Exception as error:
+                log.exception("query %s", query_key)
+                self.report_error(key, f"query failed: {type(error).__name__}: {error}")
+                return False, {"error": f"internal error: {type(error).__name__}"}
+
+        return serve
 
     def _query_behavior(self, _key: str, _payload: bytes | None) -> tuple[bool, Any]:
         with self._lock:
@@ -157,16 +228,18 @@ class Daemon:
 
     def start(self) -> None:
         """Open Zenoh, run one tick so there is a state, then declare ``alive/dms``."""
+        queries: dict[str, QueryHandler] = {
+            keys.DMS_STATE: self._query_state,
+            keys.USERS_PREFIX: self._query_users,
+            keys.AGENDA_PREFIX: self._query_agenda,
+            keys.DMS_BEHAVIOR: self._query_behavior,
+        }
         self.bus.start(
             self.on_input,
             self.on_liveliness,
-            {
-                keys.DMS_STATE: self._query_state,
-                keys.USERS_PREFIX: self._query_users,
-                keys.AGENDA_PREFIX: self._query_agenda,
-                keys.DMS_BEHAVIOR: self._query_behavior,
-            },
+            {key: self._guarded(key, handler) for key, handler in queries.items()},
         )
+        self.reloader.start()
         for key, warning in self.stack.warnings:
             self.report_error(key, warning)
         agenda = self.stack.agenda
@@ -177,12 +250,20 @@ class Daemon:
         self.bus.declare_alive()
         self.stack.when_ready()  # work that can wait (training) starts after ready
 
-    def _run_tick(self, urgent: bool) -> TickRecord:
-        if self._reload.is_set():
-            self._reload.clear()
-            self.stack.controller.reload_rules()
-        with self._lock:
-            record = self.stack.controller.tick(self.clock.now(), self.clock.monotonic(), urgent)
+    def _run_tick(self, urgent: bool) -> TickRecord | None:
+        """One tick, published; a fault the controller's own barrier missed is reported
+        and the loop goes on (the state of the last good tick stands)."""
+        for key, line in self.rate_caps.due_reports(self.clock.monotonic()):
+            self.report_error(key, line)
+        try:
+            with self._lock:
+                record = self.stack.controller.tick(
+                    self.clock.now(), self.clock.monotonic(), urgent
+                )
+        except Exception as error:
+            log.exception("tick failed")
+            self.report_error("tick", f"{type(error).__name__}: {error}; the loop goes on")
+            return None
         self._publish(record)
         return record
 
@@ -194,7 +275,11 @@ class Daemon:
         for line in self._said:
             self._echo(line)
         self._said.clear()
-        self.bus.publish(keys.DMS_STATE, record.state.model_dump(mode="json"))
+        self.bus.publish(keys.DMS_STATE, self._stamped(record.state).model_dump(mode="json"))
+
+    def _stamped(self, state: DmsState) -> DmsState:
+        """The controller's state with what only the daemon knows (its reloads)."""
+        return state.model_copy(update={"reloads": self.reloader.reloads})
 
     def _echo(self, line: str) -> None:
         """One console line; a closed stdout (``| head``) turns printing off, never the daemon."""
@@ -214,11 +299,12 @@ class Daemon:
         self.ticker.stop()
 
     def request_reload(self) -> None:
-        self._reload.set()
-        self.ticker.wake()
+        """SIGHUP: reload the rules and behaviors in the background (coalesced)."""
+        self.reloader.request()
 
     def close(self) -> None:
         """Stop the running activity, flush the store, leave Zenoh."""
+        self.reloader.stop()
         try:
             with self._lock:
                 record = self.stack.controller.shutdown(self.clock.now())

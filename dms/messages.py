@@ -178,6 +178,9 @@ class DmsState(Outbound):
     suspended: ActivityState | None
     motivation: MotivationSnapshot
     inputs: dict[str, InputStatus]
+    reloads: int = 0
+    """Reloads of the rules and behaviors finished since the start (SIGHUP, ``reload_rules``):
+    a client that asked for one knows it is in force once this has grown."""
 
 
 DecisionAction = Literal["start", "pause", "resume", "cancel", "complete", "fail", "ask"]

@@ -92,8 +92,11 @@ def test_shoulder_touch_asks_then_stop_cancels_and_continue_resumes(tmp_path: Pa
         assert cancelled["activity"] == "quiz" and cancelled["reason"] == "confirm_cancel"
 
 
+SERVE_PROFILES = "[privacy]\nserve_profiles = true\n"
+
+
 def test_a_reminder_pauses_the_activity_speaks_and_resumes_it(tmp_path: Path) -> None:
-    with running_daemon(tmp_path) as (_daemon, session):
+    with running_daemon(tmp_path, SERVE_PROFILES) as (_daemon, session):
         decisions = Collector(session, "robots/mini/dms/decision")
         states = Collector(session, "robots/mini/dms/state")
         put(session, "perception/user", ANN_READY)
@@ -202,7 +205,7 @@ def test_sigterm_stops_the_activity_and_exits_zero(tmp_path: Path) -> None:
 
 
 def test_a_restart_keeps_profiles(tmp_path: Path) -> None:
-    port_daemon = DaemonProcess(tmp_path)
+    port_daemon = DaemonProcess(tmp_path, extra_config=SERVE_PROFILES)
     session = client_session(port_daemon.port)
     try:
         port_daemon.start(session)
@@ -226,6 +229,19 @@ def test_a_restart_keeps_profiles(tmp_path: Path) -> None:
         assert replies and replies[0][0], replies
         listing = query(session, "users/*")
         assert "bob" in listing[0][1]["users"]
+        bad = query(session, "users/bob smith\u202e")
+        assert bad and not bad[0][0] and "U+202E" in bad[0][1]["error"], bad
     finally:
         port_daemon.kill()
         session.close()
+
+
+def test_personal_data_is_not_served_unless_the_configuration_says_so(tmp_path: Path) -> None:
+    with running_daemon(tmp_path) as (_daemon, session):
+        states = Collector(session, "robots/mini/dms/state")
+        put(session, "perception/user", {"present": True, "user_id": "bob", "ready": True})
+        states.wait_for(lambda s: (s["user"] or {}).get("id") == "bob")
+        for key in ("users/bob", "users/*", "agenda/bob", "agenda/*"):
+            replies = query(session, key)
+            assert replies and not replies[0][0], (key, replies)
+            assert "serve_profiles" in replies[0][1]["error"], replies

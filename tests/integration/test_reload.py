@@ -64,8 +64,10 @@ def test_rules_reload_keeps_old_rules_on_error_and_takes_new_ones(tmp_path: Path
         assert _robot_pick(decisions, 0)["detail"] == "rule ChooseEntertainment -> jokes"
 
         # an invalid version (a syntax error): reported once, the old rules decide
+        states = Collector(session, "robots/mini/dms/state")
         rules.write_text(_rules("news").replace("activate", "activat", 1))
         _hup(daemon)
+        states.wait_for(lambda s: s["reloads"] == 1)
         report = errors.wait_for(lambda e: e["key"] == "rules")
         assert str(rules) in report["error"] and "syntax error" in report["error"]
         assert _cancel_and_pick(session, decisions, "jokes") == "rule ChooseEntertainment -> jokes"
@@ -74,6 +76,7 @@ def test_rules_reload_keeps_old_rules_on_error_and_takes_new_ones(tmp_path: Path
         # a valid version through the request: the next decision follows it
         rules.write_text(_rules("news"))
         put(session, "request", {"action": "reload_rules", "by": "test"})
+        states.wait_for(lambda s: s["reloads"] == 2)
         assert _cancel_and_pick(session, decisions, "jokes") == "rule ChooseEntertainment -> news"
         assert len(errors.messages) == 1
 
@@ -115,8 +118,10 @@ def test_behaviors_reload_keeps_old_version_on_error_and_takes_new_one(tmp_path:
         assert tell_jokes() == intro
 
         # an invalid version (a transition to a missing state): refused, old one kept
+        states = Collector(session, "robots/mini/dms/state")
         jokes.write_text(original.replace("transitions: {done: PICK}", "transitions: {done: PIK}"))
         _hup(daemon)
+        states.wait_for(lambda s: s["reloads"] == 1)
         report = errors.wait_for(lambda e: e["key"] == "behaviors")
         assert str(jokes) in report["error"] and "PIK" in report["error"]
         assert "\n" not in report["error"]
@@ -124,8 +129,9 @@ def test_behaviors_reload_keeps_old_version_on_error_and_takes_new_one(tmp_path:
 
         # a valid version: the next jokes activity says the new text
         jokes.write_text(original.replace(intro, "Fresh jokes, just written."))
-        # the reload and the start queue in order: the start sees the new version
+        # the reload runs in the background; the state says when it is in force
         put(session, "request", {"action": "reload_rules", "by": "test"})
+        states.wait_for(lambda s: s["reloads"] == 2)
         assert tell_jokes() == "Fresh jokes, just written."
         assert len(errors.messages) == 1
 

@@ -1,0 +1,74 @@
+"""Reloads of the rules and behaviors, coalesced and off the tick thread.
+
+SIGHUP and ``reload_rules`` requests only raise a flag; one worker thread reads and
+compiles the files and swaps them in (each of :class:`~dms.rules.LiveRules` and
+:class:`~activities.BehaviorLibrary` swaps its new version in with one assignment,
+so a tick sees either the old or the new version, never half of one). Requests that
+arrive while a reload runs are served by one more reload after it: a flood of a
+thousand requests costs two reloads, and the 2 Hz loop never waits for a compile.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable
+
+log = logging.getLogger(__name__)
+
+ReloadJob = Callable[[], list[tuple[str, str]]]
+"""Does one reload; returns ``(key, problem)`` lines for ``dms/errors`` (empty: all in force)."""
+
+
+class Reloader:
+    """One worker thread; :meth:`request` is cheap and safe from any thread or handler."""
+
+    def __init__(self, job: ReloadJob, report: Callable[[str, str], None]) -> None:
+        self._job = job
+        self._report = report
+        self._wanted = threading.Event()
+        self._stopped = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="dms-reload", daemon=True)
+        self.requests = 0
+        self.reloads = 0
+        self._idle = threading.Condition()
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def request(self) -> None:
+        """Ask for a reload; coalesced with every other request not yet served."""
+        self.requests += 1
+        self._wanted.set()
+
+    def _run(self) -> None:
+        while True:
+            self._wanted.wait()
+            if self._stopped.is_set():
+                return
+            self._wanted.clear()
+            try:
+                problems = self._job()
+            except Exception as error:  # a reload must never take the daemon down
+                log.exception("reload failed")
+                problems = [("reload", f"reload failed: {type(error).__name__}: {error}")]
+            with self._idle:
+                self.reloads += 1
+                self._idle.notify_all()
+            for key, problem in problems:
+                self._report(key, problem)
+            if not problems:
+                log.info("rules and behaviors reloaded")
+
+    def wait_idle(self, reloads: int, timeout_s: float) -> bool:
+        """Wait until at least ``reloads`` reloads have finished (for tests and benchmarks)."""
+        with self._idle:
+            return self._idle.wait_for(lambda: self.reloads >= reloads, timeout_s)
+
+    def stop(self, timeout_s: float = 1.0) -> None:
+        """Stop the worker; a reload under way finishes in its own time (the thread is a
+        daemon thread, so it never holds the process at exit)."""
+        self._stopped.set()
+        self._wanted.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout_s)
