@@ -1,0 +1,153 @@
+"""Start time and idle memory of ``dms run`` (issue 14, item 2); prints one JSON object.
+
+- time from exec of ``dms run`` to its liveliness token ``robots/<id>/alive/dms``, seen
+  by another process's Zenoh session: median and max of ``--starts`` starts (default 10),
+  each on a free loopback port with a fresh temporary SQLite database;
+- the daemon's resident memory (RSS, from ``/proc``) at ready, and after ``--idle-s``
+  seconds idle (default 600: the issue's ten minutes) in one more start.
+
+Not a timed test: wall-clock figures on a shared machine; run it when the start path
+changes. Usage: ``.venv/bin/python bench/bench_start.py [--starts N] [--idle-s S]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import zenoh  # noqa: E402
+
+from tests.integration.harness import free_port  # noqa: E402
+
+TOKEN = "robots/mini/alive/dms"
+
+
+def watcher_session(port: int) -> zenoh.Session:
+    """A peer that keeps trying to connect to ``port`` every 20 ms, so that the token is
+    seen as soon as the daemon listens (Zenoh's default retry, 1 s then doubling, would
+    add up to a second of the watcher's own to the figure)."""
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"peer"')
+    conf.insert_json5("connect/endpoints", json.dumps([f"tcp/127.0.0.1:{port}"]))
+    conf.insert_json5(
+        "connect/retry", "{period_init_ms: 20, period_max_ms: 20, period_increase_factor: 1}"
+    )
+    conf.insert_json5("listen/endpoints", "[]")
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    return zenoh.open(conf)
+
+
+def rss_mb(pid: int) -> float:
+    """Resident set size of ``pid`` in MB (VmRSS of /proc/PID/status)."""
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024.0
+    raise RuntimeError(f"no VmRSS for {pid}")
+
+
+def start_daemon(tmp: Path, port: int) -> subprocess.Popen[bytes]:
+    """Exec ``dms run`` quietly on ``port`` with a fresh SQLite file in ``tmp``."""
+    db = f"sqlite:///{tmp / 'dms.db'}"
+    command = [sys.executable, "-m", "dms.cli", "run", "--quiet", "--db", db]
+    command += ["--listen", f"tcp/127.0.0.1:{port}", "--seed", "1"]
+    return subprocess.Popen(
+        command,
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=(tmp / "daemon.log").open("wb"),
+    )
+
+
+def one_start(timeout: float) -> tuple[float, subprocess.Popen[bytes], Any, Any]:
+    """Seconds from exec to the token; the process, its temp folder and the session
+    are returned still open (the caller measures memory, then stops them)."""
+    folder = tempfile.TemporaryDirectory()
+    tmp = Path(folder.name)
+    port = free_port()
+    session = watcher_session(port)  # waits for the daemon before it exists
+    seen = threading.Event()
+
+    def on_token(sample: zenoh.Sample) -> None:
+        if sample.kind == zenoh.SampleKind.PUT:
+            seen.set()
+
+    subscriber = session.liveliness().declare_subscriber(TOKEN, on_token, history=True)
+    t0 = time.perf_counter()
+    proc = start_daemon(tmp, port)
+    if not seen.wait(timeout):
+        proc.kill()
+        raise RuntimeError(f"no {TOKEN} within {timeout}s:\n{(tmp / 'daemon.log').read_text()}")
+    elapsed = time.perf_counter() - t0
+    subscriber.undeclare()
+    return elapsed, proc, session, folder
+
+
+def stop(proc: subprocess.Popen[bytes], session: Any, folder: Any) -> None:
+    proc.terminate()
+    try:
+        proc.wait(30)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait(10)
+    session.close()
+    folder.cleanup()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--starts", type=int, default=10, help="starts timed (default 10)")
+    parser.add_argument(
+        "--idle-s", type=float, default=600.0, help="idle time before the last RSS (default 600)"
+    )
+    parser.add_argument("--timeout", type=float, default=60.0, help="readiness wait per start")
+    args = parser.parse_args()
+
+    times: list[float] = []
+    ready_rss: list[float] = []
+    for _ in range(args.starts):
+        elapsed, proc, session, folder = one_start(args.timeout)
+        times.append(elapsed)
+        ready_rss.append(rss_mb(proc.pid))
+        stop(proc, session, folder)
+
+    elapsed, proc, session, folder = one_start(args.timeout)
+    at_ready = rss_mb(proc.pid)
+    samples: list[tuple[float, float]] = []
+    t0 = time.monotonic()
+    while (waited := time.monotonic() - t0) < args.idle_s:
+        time.sleep(min(5.0, args.idle_s - waited))
+        samples.append((round(time.monotonic() - t0, 1), round(rss_mb(proc.pid), 1)))
+    after = rss_mb(proc.pid)
+    stop(proc, session, folder)
+
+    result: dict[str, Any] = {
+        "benchmark": "start",
+        "cpus": os.cpu_count(),
+        "load_1min": round(os.getloadavg()[0], 2),
+        "starts": args.starts,
+        "ready_s_median": round(statistics.median(times), 3),
+        "ready_s_max": round(max(times), 3),
+        "ready_s_all": [round(t, 3) for t in times],
+        "rss_mb_at_ready_median": round(statistics.median(ready_rss), 1),
+        "idle_s": args.idle_s,
+        "rss_mb_at_ready": round(at_ready, 1),
+        "rss_mb_after_idle": round(after, 1),
+        "rss_mb_idle_peak": max((mb for _, mb in samples), default=round(after, 1)),
+    }
+    print(json.dumps(result))
+
+
+if __name__ == "__main__":
+    main()
