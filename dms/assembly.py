@@ -168,6 +168,7 @@ def build_stack(
         rules=rules,
         chooser=chooser,
         questions=questions,
+        offline_after_unacked=settings.controller.offline_after_unacked,
         report_error=report_error,
         robot_state=robot_state,
     )

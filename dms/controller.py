@@ -25,7 +25,7 @@ import logging
 import random
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from datetime import datetime
+from datetime import datetime, timedelta
 from typing import Any
 
 from activities import ActivityContext, BehaviorLibrary, reload_rules_and_behaviors
@@ -189,6 +189,9 @@ class Controller:
         self._touches: list[tuple[str, str]] = []
         self._state: DmsState | None = None
         self._barrier = FaultBarrier(
+        self._robot_blocked = False
+        self._probe_at: datetime | None = None
+        self._probe_wait_s = 0.0
             deps.report_error, clock=lambda: self._now.timestamp() if self._now else 0.0
         )
 
@@ -211,6 +214,7 @@ class Controller:
         with guard("robot"):
             self.deps.expression.update(now)
         if self.deps.profiles is not None:
+            self._robot_blocked = self._robot_unreachable(now)
             with guard("memory"):
                 self.deps.profiles.retry(now)
         with guard("user", self._user):
@@ -616,6 +620,10 @@ class Controller:
         reply = self.managers[manager].start(name, self._context(name), now, args)
         if reply.status is not ManagerStatus.RUNNING:
             self.counters.not_loaded += 1
+        if self._robot_blocked:
+            if chosen_by == "user" or reason == "user_request":  # said, never dropped silently
+                self._decide("fail", name, "activity_error", chosen_by, "the robot is offline", now)
+            return False
             self._decide("fail", name, "activity_error", chosen_by, reply.detail, now)
             return False
         user_id = self._session.user_id if self._session else None
@@ -884,7 +892,7 @@ class Controller:
 
     def _due_items(self, now: datetime) -> list[DueItem]:
         agenda = self.deps.agenda
-        if agenda is None:
+        if agenda is None or self._robot_blocked:  # offline: items wait (grace), not consumed
             return []
         result = self._agenda_call("due", now, self._ready_user())
         return list(result or [])
@@ -943,6 +951,37 @@ class Controller:
 
     def _decide(
         self,
+    # ------------------------------------------------------------------ the robot link
+
+    def _robot_unreachable(self, now: datetime) -> bool:
+        """True while the robot is offline and no probe is due (once per tick).
+
+        Offline (too many commands in a row not acknowledged), the robot starts nothing:
+        an activity that only times out helps no one. Every so often one start is let
+        through as a probe, the wait doubling from ``ack_timeout_s`` up to
+        ``offline_retry_max_s``; feedback or the robot's token ends it at once.
+        """
+        settings = self.settings
+        if not self.deps.expression.robot_offline:
+            if self._probe_at is not None:
+                self._probe_at = None
+                self.deps.report_error("robot", "robot back online: activities start again")
+            return False
+        if self._probe_at is None:
+            self._probe_wait_s = settings.ack_timeout_s
+            self._probe_at = now + timedelta(seconds=self._probe_wait_s)
+            self.deps.report_error(
+                "robot",
+                f"robot offline: {self.deps.expression.unacked_in_a_row} commands in a row"
+                " not acknowledged; no activity starts until it answers",
+            )
+            return True
+        if now < self._probe_at:
+            return True
+        self._probe_wait_s = min(2 * self._probe_wait_s, settings.offline_retry_max_s)
+        self._probe_at = now + timedelta(seconds=self._probe_wait_s)
+        return False
+
         action: DecisionAction,
         activity: str | None,
         reason: str,
@@ -1004,6 +1043,7 @@ class Controller:
 
     @property
     def state(self) -> DmsState | None:
+            robot_link="offline" if self.deps.expression.robot_offline else "ok",
         """The state after the last tick."""
         return self._state
 

@@ -159,6 +159,9 @@ class Daemon:
     def on_liveliness(self, key: str, alive: bool) -> None:
         if key != "dms":
             self.stack.inputs.liveliness(key, alive)
+        if key == keys.ROBOT_FEEDBACK and alive:  # the robot's token: it is reachable again
+            self.stack.expression.robot_seen()
+            self.ticker.wake()
 
     def _query_state(self, _key: str, _payload: bytes | None) -> tuple[bool, Any]:
         state = self.stack.controller.state

@@ -104,6 +104,7 @@ class ExpressionArbiter:
         on_command: Callable[[RobotCommand], None],
         ack_timeout_s: float = 10.0,
         done_timeout_s: float = 120.0,
+        offline_after_unacked: int = 3,
     ) -> None:
         self.robot = robot
         self.on_command = on_command
@@ -116,6 +117,10 @@ class ExpressionArbiter:
         self.sent = 0
         self.preemptions = 0
         self.timeouts = 0
+        self.offline_after_unacked = offline_after_unacked
+        self.unacked_in_a_row = 0
+        """Commands the robot never acknowledged since it last said anything."""
+        self._seen = False  # set from a bus thread by robot_seen(), read by update()
 
     # ------------------------------------------------------------ requests
 
@@ -187,9 +192,23 @@ class ExpressionArbiter:
 
     # ------------------------------------------------------------ the robot
 
+    @property
+    def robot_offline(self) -> bool:
+        """True once :attr:`offline_after_unacked` commands in a row went unacknowledged,
+        until the robot says anything again (feedback, or its liveliness token)."""
+        return self.unacked_in_a_row >= self.offline_after_unacked
+
+    def robot_seen(self) -> None:
+        """The robot's liveliness token came (back): it is reachable. Any thread."""
+        self._seen = True
+
     def update(self, now: datetime) -> None:
         """Collect the robot's feedback, time out silent commands, send what can go."""
+        if self._seen:
+            self._seen = False
+            self.unacked_in_a_row = 0
         for feedback in self.robot.poll(now):
+            self.unacked_in_a_row = 0  # even late feedback shows the robot is there
             handle = self._by_id.get(feedback.id)
             if handle is None or handle.command_id != feedback.id or handle.finished:
                 continue
@@ -212,6 +231,8 @@ class ExpressionArbiter:
             overdue = self._overdue(active, now)
             if overdue is not None:
                 self.timeouts += 1
+                if active.status is CommandStatus.SENT:
+                    self.unacked_in_a_row += 1
                 active.status = CommandStatus.TIMED_OUT
                 active.detail = overdue
                 if active.command_id is not None:

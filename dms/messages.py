@@ -178,6 +178,9 @@ class DmsState(Outbound):
     suspended: ActivityState | None
     motivation: MotivationSnapshot
     inputs: dict[str, InputStatus]
+    robot_link: Literal["ok", "offline"] = "ok"
+    """``offline``: too many commands in a row not acknowledged; no activity starts
+    until the robot answers again (feedback, or its ``alive/robot/feedback`` token)."""
     reloads: int = 0
     """Reloads of the rules and behaviors finished since the start (SIGHUP, ``reload_rules``):
     a client that asked for one knows it is in force once this has grown."""

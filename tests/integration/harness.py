@@ -105,8 +105,17 @@ def wait_token(
 class DaemonProcess:
     """``dms run`` in a subprocess on a free loopback port and a SQLite file."""
 
-    def __init__(self, tmp: Path, port: int | None = None, extra_config: str = "") -> None:
+    def __init__(
+        self,
+        tmp: Path,
+        port: int | None = None,
+        extra_config: str = "",
+        extra_args: tuple[str, ...] = (),
+    ) -> None:
+        """``extra_config`` is appended inside the ``[controller]`` table (or opens its own
+        tables); ``extra_args`` go after ``dms run``'s flags (``--robot zenoh``)."""
         self.port = port or free_port()
+        self.extra_args = extra_args
         self.db = f"sqlite:///{tmp / 'dms.db'}"
         self.config = tmp / "dms.toml"
         self.config.write_text(
@@ -132,6 +141,7 @@ class DaemonProcess:
                 self.db,
                 "--listen",
                 f"tcp/127.0.0.1:{self.port}",
+                *self.extra_args,
             ],
             stdout=self._log_file,
             stderr=subprocess.STDOUT,
