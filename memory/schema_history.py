@@ -3,17 +3,42 @@
 The profile store and the agenda share one database but each keeps its own Alembic
 history and version table, so either can be upgraded, or be missing, on its own.
 ``memory.migrations`` and ``agenda.migrations`` each hold one :class:`SchemaHistory`.
+
+Alembic (with Mako and Pygments: 80 ms and 12 MB) is imported only to migrate. Every
+start of the daemon asks :meth:`SchemaHistory.head` and :meth:`SchemaHistory.current`;
+they read the revision files' literals and the version table directly, so a restart on
+a database at head never imports it (issue 14).
 """
 
 from __future__ import annotations
 
+import ast
+from functools import cached_property
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from alembic import command
-from alembic.config import Config
-from alembic.runtime.migration import MigrationContext
-from alembic.script import ScriptDirectory
-from sqlalchemy import Connection, Engine, inspect
+from sqlalchemy import Connection, Engine, column, inspect, select, table
+
+if TYPE_CHECKING:
+    from alembic.config import Config
+
+
+def _literals(path: Path) -> dict[str, object]:
+    """The module-level ``name = <literal>`` assignments of one revision file."""
+    out: dict[str, object] = {}
+    for node in ast.parse(path.read_text(encoding="utf-8"), str(path)).body:
+        target: ast.expr | None = None
+        value: ast.expr | None = None
+        if isinstance(node, ast.Assign) and len(node.targets) == 1:
+            target, value = node.targets[0], node.value
+        elif isinstance(node, ast.AnnAssign):
+            target, value = node.target, node.value
+        if isinstance(target, ast.Name) and value is not None:
+            try:
+                out[target.id] = ast.literal_eval(value)
+            except ValueError:
+                out[target.id] = ValueError  # not a literal: Alembic must read the file
+    return out
 
 
 class SchemaHistory:
@@ -26,6 +51,8 @@ class SchemaHistory:
 
     def config(self, connection: Connection | None = None) -> Config:
         """Alembic's configuration, run from code (no alembic.ini)."""
+        from alembic.config import Config
+
         config = Config()
         config.set_main_option("script_location", str(self.folder))
         config.set_main_option("path_separator", "os")
@@ -36,13 +63,46 @@ class SchemaHistory:
 
     def head(self) -> str:
         """The newest revision this code knows."""
+        return self._head
+
+    @cached_property
+    def _head(self) -> str:
+        """Read from the revision files' ``revision`` and ``down_revision`` literals; a
+        history that is not one plain chain of literals (a merge, a branch, computed
+        values) is left to Alembic's ScriptDirectory, which runs the files."""
+        revisions: set[str] = set()
+        parents: set[str] = set()
+        for path in sorted((self.folder / "versions").glob("*.py")):
+            values = _literals(path)
+            revision, down = values.get("revision"), values.get("down_revision")
+            if not isinstance(revision, str) or not (down is None or isinstance(down, str)):
+                return self.alembic_head()
+            if values.get("branch_labels") is not None or values.get("depends_on") is not None:
+                return self.alembic_head()
+            revisions.add(revision)
+            if down is not None:
+                parents.add(down)
+        heads = revisions - parents
+        if len(heads) != 1 or not parents <= revisions:
+            return self.alembic_head()
+        return heads.pop()
+
+    def alembic_head(self) -> str:
+        """The head as Alembic computes it (imports Alembic and runs the revision files)."""
+        from alembic.script import ScriptDirectory
+
         return ScriptDirectory.from_config(self.config()).get_heads()[0]
 
     def current(self, connection: Connection) -> str | None:
-        """The revision the database is at; None when the package was never installed."""
-        opts = {"version_table": self.version_table}
-        heads = MigrationContext.configure(connection, opts=opts).get_current_heads()
-        return heads[0] if heads else None
+        """The revision the database is at; None when the package was never installed.
+
+        What Alembic's ``MigrationContext.get_current_heads()[0]`` answers, read from
+        the version table with one SELECT.
+        """
+        if not inspect(connection).has_table(self.version_table):
+            return None
+        versions = table(self.version_table, column("version_num"))
+        return connection.execute(select(versions.c.version_num)).scalars().first()
 
     def installed(self, connection: Connection) -> bool:
         """Whether the package has its version table or any of its tables here."""
@@ -51,5 +111,7 @@ class SchemaHistory:
 
     def upgrade_engine(self, engine: Engine, revision: str = "head") -> None:
         """Bring the package's tables on ``engine`` to ``revision`` (default: head)."""
+        from alembic import command
+
         with engine.begin() as connection:
             command.upgrade(self.config(connection), revision)
