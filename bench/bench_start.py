@@ -2,7 +2,9 @@
 
 - time from exec of ``dms run`` to its liveliness token ``robots/<id>/alive/dms``, seen
   by another process's Zenoh session: median and max of ``--starts`` starts (default 10),
-  each on a free loopback port with a fresh temporary SQLite database;
+  each on a free loopback port with a fresh temporary SQLite database (``ready_s_*``:
+  the schema is created), and as many restarts on one database already at head
+  (``restart_s_*``: what a supervisor restarting a crashed daemon waits);
 - the daemon's resident memory (RSS, from ``/proc``) at ready, and after ``--idle-s``
   seconds idle (default 600: the issue's ten minutes) in one more start.
 
@@ -70,10 +72,13 @@ def start_daemon(tmp: Path, port: int) -> subprocess.Popen[bytes]:
     )
 
 
-def one_start(timeout: float) -> tuple[float, subprocess.Popen[bytes], Any, Any]:
-    """Seconds from exec to the token; the process, its temp folder and the session
-    are returned still open (the caller measures memory, then stops them)."""
-    folder = tempfile.TemporaryDirectory()
+def one_start(
+    timeout: float, folder: Any = None
+) -> tuple[float, subprocess.Popen[bytes], Any, Any]:
+    """Seconds from exec to the token, in ``folder`` (a TemporaryDirectory; a new one by
+    default); the process, its session and the folder are returned still open (the
+    caller measures memory, then stops them)."""
+    folder = folder or tempfile.TemporaryDirectory()
     tmp = Path(folder.name)
     port = free_port()
     session = watcher_session(port)  # waits for the daemon before it exists
@@ -94,7 +99,7 @@ def one_start(timeout: float) -> tuple[float, subprocess.Popen[bytes], Any, Any]
     return elapsed, proc, session, folder
 
 
-def stop(proc: subprocess.Popen[bytes], session: Any, folder: Any) -> None:
+def stop(proc: subprocess.Popen[bytes], session: Any, folder: Any, keep: bool = False) -> None:
     proc.terminate()
     try:
         proc.wait(30)
@@ -102,7 +107,8 @@ def stop(proc: subprocess.Popen[bytes], session: Any, folder: Any) -> None:
         proc.kill()
         proc.wait(10)
     session.close()
-    folder.cleanup()
+    if not keep:
+        folder.cleanup()
 
 
 def main() -> None:
@@ -122,6 +128,15 @@ def main() -> None:
         ready_rss.append(rss_mb(proc.pid))
         stop(proc, session, folder)
 
+    restarts: list[float] = []
+    _, proc, session, kept = one_start(args.timeout)  # creates the database, not timed
+    stop(proc, session, kept, keep=True)
+    for _ in range(args.starts):
+        elapsed, proc, session, kept = one_start(args.timeout, kept)
+        restarts.append(elapsed)
+        stop(proc, session, kept, keep=True)
+    kept.cleanup()
+
     elapsed, proc, session, folder = one_start(args.timeout)
     at_ready = rss_mb(proc.pid)
     samples: list[tuple[float, float]] = []
@@ -140,6 +155,8 @@ def main() -> None:
         "ready_s_median": round(statistics.median(times), 3),
         "ready_s_max": round(max(times), 3),
         "ready_s_all": [round(t, 3) for t in times],
+        "restart_s_median": round(statistics.median(restarts), 3),
+        "restart_s_max": round(max(restarts), 3),
         "rss_mb_at_ready_median": round(statistics.median(ready_rss), 1),
         "idle_s": args.idle_s,
         "rss_mb_at_ready": round(at_ready, 1),
