@@ -134,11 +134,16 @@ def upgrade(db: DbOption = None) -> None:
             before = _revision(engine)
             migrations.upgrade_engine(engine)
             after = _revision(engine)
+            from memory.models import Base
+
+            recreated = migrations.HISTORY.recreate_missing(engine, Base.metadata)
         finally:
             engine.dispose()
     except (SQLAlchemyError, ImportError, OSError) as error:
         raise ProfileError(f"cannot upgrade {url}: {_first_line(error)}") from None
     typer.echo(f"profiles: {before or 'empty'} -> {after}")
+    if recreated:
+        typer.echo(f"profiles: recreated the missing table(s) {', '.join(recreated)}, empty")
     try:
         from agenda import migrations as agenda_migrations
     except ImportError:  # an install without the agenda package

@@ -8,10 +8,11 @@ foreign keys on.
 
 from __future__ import annotations
 
+import hashlib
 from pathlib import Path
 from typing import Any
 
-from platformdirs import user_data_dir
+from platformdirs import user_data_dir, user_state_dir
 from sqlalchemy import Engine, create_engine, event
 from sqlalchemy.engine import make_url
 
@@ -35,26 +36,52 @@ def as_url(value: str) -> str:
     return f"sqlite:///{Path(value).expanduser().absolute()}"
 
 
-def make_engine(url: str, **kwargs: Any) -> Engine:
-    """An engine for ``url``; SQLite files get WAL, FULL sync, busy timeout, foreign keys."""
+def side_file(url: str, suffix: str) -> Path:
+    """A local file that belongs to the database at ``url`` (the write spool, quarantine).
+
+    Beside a SQLite file (``dms.db.spool``); for a server database, in the user's state
+    folder, named after the URL without its password, so each database has its own.
+    """
+    parsed = make_url(as_url(url))
+    database = parsed.database
+    if parsed.get_backend_name() == "sqlite" and database and database != ":memory:":
+        return Path(f"{Path(database).expanduser().absolute()}.{suffix}")
+    shown = parsed.render_as_string(hide_password=True)
+    digest = hashlib.sha256(shown.encode()).hexdigest()[:16]
+    folder = Path(user_state_dir("dms", appauthor=False))
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder / f"db-{digest}.{suffix}"
+
+
+def make_engine(url: str, busy_timeout_s: float | None = None, **kwargs: Any) -> Engine:
+    """An engine for ``url``; SQLite files get WAL, FULL sync, busy timeout, foreign keys.
+
+    ``busy_timeout_s`` (SQLite) is how long a statement waits for another process's lock
+    before failing; the daemon's writer keeps it short and spools instead of waiting.
+    """
     url = as_url(url)
     parsed = make_url(url)
     if parsed.get_backend_name() == "sqlite":
         database = parsed.database
         if database and database != ":memory:":
             Path(database).expanduser().parent.mkdir(parents=True, exist_ok=True)
-        engine = create_engine(
-            url, connect_args={"timeout": SQLITE_BUSY_TIMEOUT_MS / 1000}, **kwargs
+        timeout_ms = round(
+            SQLITE_BUSY_TIMEOUT_MS if busy_timeout_s is None else busy_timeout_s * 1000
         )
-        event.listen(engine, "connect", _sqlite_pragmas)
+        engine = create_engine(url, connect_args={"timeout": timeout_ms / 1000}, **kwargs)
+
+        def pragmas(dbapi_connection: Any, _record: Any) -> None:
+            _sqlite_pragmas(dbapi_connection, timeout_ms)
+
+        event.listen(engine, "connect", pragmas)
         return engine
     return create_engine(url, pool_pre_ping=True, **kwargs)
 
 
-def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
+def _sqlite_pragmas(dbapi_connection: Any, timeout_ms: int) -> None:
     cursor = dbapi_connection.cursor()
     cursor.execute("PRAGMA journal_mode=WAL")
     cursor.execute("PRAGMA synchronous=FULL")
-    cursor.execute(f"PRAGMA busy_timeout={SQLITE_BUSY_TIMEOUT_MS}")
+    cursor.execute(f"PRAGMA busy_timeout={timeout_ms}")
     cursor.execute("PRAGMA foreign_keys=ON")
     cursor.close()

@@ -5,8 +5,11 @@
     DmsError
      └── ProfileError            a profile value, a database or a request is wrong
           ├── ProfileNotFound    no profile for this user id (also a KeyError)
-          ├── StoreUnavailable   the database failed while running: retry later
-          └── SchemaOutOfDate    the database needs ``dms db upgrade``
+          ├── StoreUnavailable   the database failed for a while (lock, connection): retry later
+          ├── StoreRefused       the database refused this one request (constraint, bad
+          │                      data, missing table): retrying will not help
+          ├── SchemaOutOfDate    the database needs ``dms db upgrade``
+          └── StoreDamaged       tables are missing: ``dms db upgrade`` or a restore
 """
 
 from __future__ import annotations
@@ -32,3 +35,13 @@ class StoreUnavailable(ProfileError):
 
 class SchemaOutOfDate(ProfileError):
     """The database was made by an older schema; ``dms db upgrade`` brings it up to date."""
+
+
+class StoreRefused(ProfileError):
+    """The database refused this request for good (a constraint, a value it cannot store,
+    a missing table or column); retrying it will not help, the writes behind it go on."""
+
+
+class StoreDamaged(ProfileError):
+    """The database is at the right revision but tables are missing (dropped by hand, a
+    partial restore); ``dms db upgrade`` recreates them empty, or restore a backup."""

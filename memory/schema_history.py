@@ -17,7 +17,7 @@ from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from sqlalchemy import Connection, Engine, column, inspect, select, table
+from sqlalchemy import Connection, Engine, MetaData, column, inspect, select, table
 
 if TYPE_CHECKING:
     from alembic.config import Config
@@ -115,3 +115,17 @@ class SchemaHistory:
 
         with engine.begin() as connection:
             command.upgrade(self.config(connection), revision)
+
+    def recreate_missing(self, engine: Engine, metadata: MetaData) -> list[str]:
+        """Recreate, empty, the package's tables missing at head (dropped by hand, a
+        partial restore): what ``dms db upgrade`` offers for a damaged database.
+        Returns their names."""
+        with engine.begin() as connection:
+            if self.current(connection) != self.head():
+                return []
+            names = set(inspect(connection).get_table_names())
+            missing = [name for name in self.tables if name not in names]
+            if missing:
+                tables = [metadata.tables[name] for name in missing]
+                metadata.create_all(connection, tables=tables)
+            return missing

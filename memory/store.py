@@ -2,8 +2,11 @@
 
 Every public method opens its own short session and commits before it returns, so
 the store is safe to call from several threads and an acknowledged write survives a
-crash (SQLite: WAL with ``synchronous=FULL``). Database failures while running come
-out as :class:`StoreUnavailable` so that the daemon keeps deciding and retries.
+crash (SQLite: WAL with ``synchronous=FULL``). Database failures while running are
+classified (:func:`classify`): :class:`StoreUnavailable` for a passing trouble (a lock,
+a lost connection, a timeout: retry later), :class:`StoreRefused` for a refusal of this
+one request (a constraint, a value the database cannot hold, a missing table: retrying
+will not help). The daemon spools the first and quarantines the second.
 """
 
 from __future__ import annotations
@@ -14,15 +17,33 @@ from contextlib import contextmanager
 from datetime import datetime
 from typing import Any, Protocol
 
-from sqlalchemy import delete, select
+from sqlalchemy import delete, inspect, select
 from sqlalchemy.engine import make_url
-from sqlalchemy.exc import ArgumentError, DBAPIError, IntegrityError, SQLAlchemyError
+from sqlalchemy.exc import (
+    ArgumentError,
+    DatabaseError,
+    DBAPIError,
+    DisconnectionError,
+    IntegrityError,
+    InterfaceError,
+    InternalError,
+    OperationalError,
+    SQLAlchemyError,
+)
+from sqlalchemy.exc import TimeoutError as PoolTimeout
 from sqlalchemy.orm import Session, sessionmaker
 
 from dms.ids import InvalidIdentifier, check_identifier
 from memory import migrations
 from memory.db import as_url, default_url, make_engine
-from memory.errors import ProfileError, ProfileNotFound, SchemaOutOfDate, StoreUnavailable
+from memory.errors import (
+    ProfileError,
+    ProfileNotFound,
+    SchemaOutOfDate,
+    StoreDamaged,
+    StoreRefused,
+    StoreUnavailable,
+)
 from memory.models import (
     ActivityRunRow,
     ActivityScoreRow,
@@ -55,6 +76,42 @@ def _one_line(error: BaseException) -> str:
     return text[0] if text else type(error).__name__
 
 
+_TRANSIENT_SQLSTATE_CLASSES = ("08", "40", "53", "57", "58", "HY", "XX")
+"""PostgreSQL error classes that pass: connection, rollback (serialization, deadlock),
+resources, operator intervention (shutdown, statement timeout), system, internal."""
+_TRANSIENT_SQLSTATES = frozenset({"55P03", "55006"})  # lock not available, object in use
+_PERMANENT_SQLITE = ("no such table", "no such column", "has no column", "constraint failed")
+
+
+def classify(error: SQLAlchemyError) -> StoreUnavailable | StoreRefused:
+    """A database error as a passing trouble (retry later) or a refusal of this request.
+
+    When in doubt it is passing: a write kept for a retry is never lost, one refused is
+    set aside for good.
+    """
+    line = f"database error: {_one_line(error)}"
+    if not isinstance(error, DBAPIError):
+        if isinstance(error, PoolTimeout | DisconnectionError):
+            return StoreUnavailable(line)
+        return StoreRefused(line)  # bad data caught before the database (a bind, a type)
+    if error.connection_invalidated or isinstance(error, InterfaceError):
+        return StoreUnavailable(line)
+    sqlstate = getattr(error.orig, "sqlstate", None)
+    if isinstance(sqlstate, str) and len(sqlstate) == 5:
+        transient = sqlstate in _TRANSIENT_SQLSTATES or sqlstate.startswith(
+            _TRANSIENT_SQLSTATE_CLASSES
+        )
+        return StoreUnavailable(line) if transient else StoreRefused(line)
+    if isinstance(error, OperationalError):
+        text = str(error.orig).lower()
+        if any(part in text for part in _PERMANENT_SQLITE):
+            return StoreRefused(line)
+        return StoreUnavailable(line)  # locked, busy, disk I/O, cannot open, disk full
+    if type(error) in (DBAPIError, DatabaseError) or isinstance(error, InternalError):
+        return StoreUnavailable(line)  # no finer class (a damaged file, a driver fault)
+    return StoreRefused(line)  # integrity, data, programming, not supported
+
+
 def _check_time(name: str, value: Any) -> datetime:
     if not isinstance(value, datetime) or value.tzinfo is None:
         raise ProfileError(f"{name}: must be a tz-aware UTC datetime (got {value!r:.60})")
@@ -69,7 +126,7 @@ def _check_user_id(user_id: Any) -> str:
         raise ProfileError(str(error)) from None
     if trimmed != user_id:
         raise ProfileError(f"user_id: has white space around it (got {user_id!r:.60})")
-    return user_id
+    return trimmed
 
 
 def _check_name(field: str, value: Any, max_length: int = 50) -> str:
@@ -165,7 +222,7 @@ def register_user_data(part: UserData) -> None:
     _USER_DATA[part.name] = part
 
 
-class _Conflict(ProfileError):
+class _Conflict(StoreRefused):
     """A write collided with a row another writer made (a unique key)."""
 
 
@@ -177,17 +234,18 @@ class ProfileStore:
         SchemaOutOfDate: the database needs ``dms db upgrade --db URL``.
     """
 
-    def __init__(self, url: str | None = None) -> None:
+    def __init__(self, url: str | None = None, busy_timeout_s: float | None = None) -> None:
         self.url = as_url(url) if url else default_url()
         try:
             shown = make_url(self.url).render_as_string(hide_password=True)
         except ArgumentError as error:
             raise ProfileError(f"cannot open database {self.url!r}: {error}") from None
         try:
-            self.engine = make_engine(self.url)
+            self.engine = make_engine(self.url, busy_timeout_s)
             with self.engine.connect() as connection:
                 installed = migrations.installed(connection)
                 current = migrations.current(connection) if installed else None
+                tables = set(inspect(connection).get_table_names())
         except (SQLAlchemyError, OSError, ImportError) as error:
             raise ProfileError(f"cannot open database {shown}: {_one_line(error)}") from None
         head = migrations.head()
@@ -205,13 +263,21 @@ class ProfileStore:
                 f"database {shown} has profile schema {current or 'unversioned'}, "
                 f"this dms needs {head}: run `dms db upgrade --db {shown}`"
             )
+        elif missing := [name for name in migrations.TABLES if name not in tables]:
+            self.engine.dispose()
+            raise StoreDamaged(
+                f"database {shown} is damaged: table {', '.join(missing)} missing at schema "
+                f"{head}; restore a backup, or run `dms db upgrade --db {shown}` to recreate "
+                "it empty"
+            )
         self._sessions = sessionmaker(self.engine, expire_on_commit=False)
 
     # ------------------------------------------------------------------ plumbing
 
     @contextmanager
     def _session(self) -> Iterator[Session]:
-        """One short transaction; database failures become StoreUnavailable."""
+        """One short transaction; database failures become StoreUnavailable or
+        StoreRefused (:func:`classify`)."""
         try:
             with self._sessions.begin() as session:
                 yield session
@@ -219,8 +285,8 @@ class ProfileStore:
             raise
         except IntegrityError as error:
             raise _Conflict(f"refused by the database: {_one_line(error)}") from None
-        except (DBAPIError, SQLAlchemyError) as error:
-            raise StoreUnavailable(f"database error: {_one_line(error)}") from None
+        except SQLAlchemyError as error:
+            raise classify(error) from None
 
     @staticmethod
     def _user(session: Session, user_id: str) -> UserRow:

@@ -16,7 +16,7 @@ from memory.schema_history import SchemaHistory
 VERSION_TABLE = "alembic_version_agenda"
 HERE = Path(__file__).resolve().parent
 
-HISTORY = SchemaHistory(HERE, VERSION_TABLE, ("agenda_items",))
+HISTORY = SchemaHistory(HERE, VERSION_TABLE, ("agenda_items", "agenda_occurrences"))
 head = HISTORY.head
 current = HISTORY.current
 installed = HISTORY.installed
@@ -28,6 +28,9 @@ def upgrade(url: str) -> None:
     engine = make_engine(url)
     try:
         upgrade_engine(engine)
+        from agenda.models import Base
+
+        HISTORY.recreate_missing(engine, Base.metadata)
     finally:
         engine.dispose()
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sqlite3
 import threading
 from datetime import timedelta
 from pathlib import Path
@@ -15,6 +16,7 @@ from memory import (
     ProfileStore,
     StoreUnavailable,
 )
+from memory.errors import StoreDamaged, StoreRefused
 from memory.parameters import user_parameter_types
 from memory.store import FAILURES_TO_SWITCH, INITIATIVE_MIN_OBSERVATIONS
 from tests.memory.conftest import NOW
@@ -326,7 +328,7 @@ def test_a_database_that_cannot_be_opened_is_one_line(tmp_path: Path) -> None:
         assert not isinstance(caught.value, StoreUnavailable)
 
 
-def test_a_database_failure_while_running_is_store_unavailable(tmp_path: Path) -> None:
+def test_a_missing_table_refuses_the_write_for_good(tmp_path: Path) -> None:
     path = tmp_path / "dms.db"
     store = ProfileStore(f"sqlite:///{path}")
     store.get_or_create("ann", NOW)
@@ -334,8 +336,37 @@ def test_a_database_failure_while_running_is_store_unavailable(tmp_path: Path) -
 
     with store.engine.begin() as connection:
         connection.execute(text("DROP TABLE feedback"))
-    with pytest.raises(StoreUnavailable) as caught:
+    with pytest.raises(StoreRefused) as caught:
         store.record_feedback("ann", "quiz", 0.5, NOW)
-    assert "\n" not in str(caught.value)
+    assert "\n" not in str(caught.value) and "no such table: feedback" in str(caught.value)
     assert store.get("ann").scores == {}
     store.close()
+
+
+def test_a_lock_held_by_another_process_is_store_unavailable(tmp_path: Path) -> None:
+    path = tmp_path / "dms.db"
+    store = ProfileStore(f"sqlite:///{path}", busy_timeout_s=0.05)
+    store.get_or_create("ann", NOW)
+    holder = sqlite3.connect(path, isolation_level=None)
+    holder.execute("BEGIN EXCLUSIVE")
+    try:
+        with pytest.raises(StoreUnavailable) as caught:
+            store.record_feedback("ann", "quiz", 0.5, NOW)
+        assert "database is locked" in str(caught.value)
+    finally:
+        holder.execute("ROLLBACK")
+        holder.close()
+    assert store.record_feedback("ann", "quiz", 0.5, NOW).scores["quiz"].feedback_count == 1
+    store.close()
+
+
+def test_a_dropped_table_is_refused_at_open_with_the_repair(tmp_path: Path) -> None:
+    url = f"sqlite:///{tmp_path / 'dms.db'}"
+    ProfileStore(url).close()
+    with sqlite3.connect(tmp_path / "dms.db") as connection:
+        connection.execute("DROP TABLE activity_runs")
+    with pytest.raises(StoreDamaged) as caught:
+        ProfileStore(url)
+    line = str(caught.value)
+    assert "\n" not in line and "activity_runs" in line
+    assert "restore a backup" in line and f"dms db upgrade --db {url}" in line
