@@ -7,15 +7,20 @@ once (:meth:`Agenda.delivered`); misses are queued and written within
 A miss that is lost in a crash is found again on restart, because the item's cursor
 in the database moves only when its occurrence is logged.
 
-The agenda is not thread-safe by design of its callers (the daemon serializes its
-ticks and queries); a lock guards it anyway.
+With ``background=True`` (the daemon) the calls from the tick (:meth:`Agenda.due`,
+:meth:`Agenda.delivered`, :meth:`Agenda.user_perceived`) never touch the database: their
+writes and reads run on one background thread, in order. Database I/O never holds the
+index's lock (``_lock``), only ``_io_lock``, which serializes it; so a locked or absent
+database never stalls the tick. Lock order: ``_io_lock`` before ``_lock``, never the
+other way.
 """
 
 from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 from typing import Any
@@ -59,6 +64,8 @@ log = logging.getLogger(__name__)
 FLUSH_AFTER_S = 300
 """Longest time a recorded miss waits in memory before it is written."""
 RETRY_AFTER_S = 5
+BACKGROUND_BUSY_TIMEOUT_S = 1.0
+"""SQLite lock wait of the background thread: it retries later rather than wait long."""
 MAX_LEAD_S = 86400
 MAX_GRACE_S = 7 * 86400
 MAX_TEXT = 500
@@ -80,9 +87,20 @@ def _one_line(error: BaseException) -> str:
 class Agenda:
     """Every user's events and reminders; the controller's view of what is due."""
 
-    def __init__(self, url: str, user_exists: Callable[[str], bool] | None = None) -> None:
+    def __init__(
+        self,
+        url: str,
+        user_exists: Callable[[str], bool] | None = None,
+        background: bool = False,
+    ) -> None:
         self._user_exists = user_exists
         self._lock = threading.RLock()
+        self._io_lock = threading.Lock()
+        self._jobs = (
+            ThreadPoolExecutor(max_workers=1, thread_name_prefix="dms-agenda")
+            if background
+            else None
+        )
         self._index = AgendaIndex()
         self._queue: list[MissedRun | _Delivery] = []
         self._flush_at_us: int | None = None
@@ -90,7 +108,9 @@ class Agenda:
         self.problems: list[str] = []
         """Stored items that could not be loaded (bad spec, unknown zone), one line each."""
         try:
-            self._engine: Engine = make_engine(url)
+            self._engine: Engine = make_engine(
+                url, BACKGROUND_BUSY_TIMEOUT_S if background else None
+            )
         except (SQLAlchemyError, OSError) as error:
             raise AgendaError(f"cannot open the agenda at {url}: {_one_line(error)}") from None
         try:
@@ -104,6 +124,23 @@ class Agenda:
             self._engine.dispose()
             raise
 
+    def _offload(self, job: Callable[[], None]) -> None:
+        """Run ``job`` on the background thread, or at once without one (never under _lock)."""
+        if self._jobs is None:
+            job()
+            return
+        try:
+            self._jobs.submit(self._guarded, job)
+        except RuntimeError:  # shut down: the caller is closing, close() flushes
+            log.warning("agenda: closing, %s left to close()", getattr(job, "__name__", job))
+
+    @staticmethod
+    def _guarded(job: Callable[[], None]) -> None:
+        try:
+            job()
+        except Exception:  # a background job must not die silently; the next one retries
+            log.exception("agenda: background database work failed")
+
     # ------------------------------------------------------------------ schema
 
     def _prepare_schema(self) -> None:
@@ -111,7 +148,15 @@ class Agenda:
         with self._engine.connect() as connection:
             revision = migrations.current(connection)
             installed = migrations.installed(connection)
+            tables = set(inspect(connection).get_table_names())
         if revision == head:
+            missing = [name for name in (ItemRow.__tablename__, OccurrenceRow.__tablename__)]
+            missing = [name for name in missing if name not in tables]
+            if missing:
+                raise AgendaError(
+                    f"the database is damaged: the agenda's table {', '.join(missing)} is "
+                    "missing; restore a backup, or run `dms db upgrade` to recreate it empty"
+                )
             return
         if revision is None and not installed:
             try:
@@ -128,9 +173,12 @@ class Agenda:
         )
 
     def close(self) -> None:
-        """Write what is queued and release the database."""
-        with self._lock:
+        """Finish the background work, write what is queued and release the database."""
+        if self._jobs is not None:
+            self._jobs.shutdown(wait=True)
+        try:
             self._flush()
+        finally:
             self._engine.dispose()
 
     # ------------------------------------------------------------------ management
@@ -138,7 +186,7 @@ class Agenda:
     def add(self, spec: ItemSpec, now: datetime) -> AgendaItem:
         """Store a new item; AgendaError (one line, nothing stored) when it is invalid."""
         row, schedule = self._validate(spec, now)
-        with self._lock:
+        with self._io_lock:
             try:
                 with self._sessions.begin() as session:
                     session.add(row)
@@ -146,12 +194,13 @@ class Agenda:
                     item = _item(row)
             except SQLAlchemyError as error:
                 raise AgendaError(f"cannot store the agenda item: {_one_line(error)}") from None
-            self._index.put(self._entry(item, schedule))
+            with self._lock:
+                self._index.put(self._entry(item, schedule))
             return item
 
     def get(self, item_id: int) -> AgendaItem:
         """The stored item ``item_id``; AgendaNotFound if there is none."""
-        with self._lock, self._sessions() as session:
+        with self._sessions() as session:
             row = session.get(ItemRow, item_id)
             if row is None:
                 raise AgendaNotFound(f"no agenda item {item_id}")
@@ -159,8 +208,8 @@ class Agenda:
 
     def remove(self, item_id: int) -> None:
         """Delete item ``item_id`` (its log stays); AgendaNotFound if there is none."""
-        with self._lock:
-            self._flush()
+        self._flush()
+        with self._io_lock:
             try:
                 with self._sessions.begin() as session:
                     deleted = session.execute(delete(ItemRow).where(ItemRow.id == item_id))
@@ -168,28 +217,39 @@ class Agenda:
                 raise AgendaError(
                     f"cannot remove agenda item {item_id}: {_one_line(error)}"
                 ) from None
-            known = self._index.drop(item_id)
-            if not deleted.rowcount and not known:  # type: ignore[attr-defined]
-                raise AgendaNotFound(f"no agenda item {item_id}")
+            with self._lock:
+                known = self._index.drop(item_id)
+        if not deleted.rowcount and not known:  # type: ignore[attr-defined]
+            raise AgendaNotFound(f"no agenda item {item_id}")
 
     def upcoming(self, user_id: str | None, now: datetime, limit: int = 20) -> list[UpcomingItem]:
         """Each item's next occurrence (or the one waiting now), soonest first.
 
         Reads the database first, so it shows items added by another process.
         """
+        self._flush()
+        self._load(user_id)
         with self._lock:
-            self._flush()
-            self._load(user_id)
             return self._index.upcoming(user_id, to_us(now), max(0, limit))
 
     # ------------------------------------------------------------------ the controller
 
     def user_perceived(self, user_id: str, now: datetime) -> None:
-        """The robot sees ``user_id``: load their schedule from the database (paper, step 5)."""
-        with self._lock:
-            self._flush()
+        """The robot sees ``user_id``: load their schedule from the database (paper, step 5).
+
+        In the background with ``background=True``: the index is updated when the read lands.
+        """
+
+        def perceive() -> None:
+            try:
+                self._flush()
+            except AgendaError as error:
+                log.warning("%s; retrying in %s s", error, RETRY_AFTER_S)
             self._load(user_id)
-            self._advance(to_us(now), down=False)
+            with self._lock:
+                self._advance(to_us(now), down=False)
+
+        self._offload(perceive)
 
     def recover(self, now: datetime) -> list[DueItem]:
         """At daemon start: settle what fell due while it was down.
@@ -199,7 +259,8 @@ class Agenda:
         """
         with self._lock:
             self._advance(to_us(now), down=True)
-            self._flush()
+        self._flush()
+        with self._lock:
             return self._index.all_waiting()
 
     def due(self, now: datetime, present_user: str | None) -> list[DueItem]:
@@ -209,18 +270,17 @@ class Agenda:
         missed by this call.
         """
         now_us = to_us(now)
+        flush = False
         with self._lock:
             if self._index.has_work(now_us):
                 self._advance(now_us, down=False)
             if self._flush_at_us is not None and now_us >= self._flush_at_us:
-                try:
-                    self._flush()
-                except AgendaError as error:
-                    log.warning("%s; retrying in %s s", error, RETRY_AFTER_S)
-                    self._flush_at_us = now_us + RETRY_AFTER_S * US_PER_S
-            if present_user is None:
-                return []
-            return self._index.waiting_for(present_user)
+                flush = True
+                self._flush_at_us = now_us + RETRY_AFTER_S * US_PER_S  # unless it succeeds
+            waiting = [] if present_user is None else self._index.waiting_for(present_user)
+        if flush:
+            self._offload(self._flush_or_retry(now_us))
+        return waiting
 
     def delivered(self, item: DueItem, now: datetime) -> None:
         """``item`` was started or spoken: log it and schedule its next occurrence.
@@ -235,11 +295,21 @@ class Agenda:
             stored = self._index.entries[item.item_id].item
             self._index.delivered(item.item_id, cursor)
             self._queue.append(_Delivery(stored, fire_us, now_us, cursor))
+        self._offload(self._flush_or_retry(now_us))
+
+    def _flush_or_retry(self, now_us: int) -> Callable[[], None]:
+        """A job that flushes the queue; if the database fails, due() retries it later."""
+
+        def flush() -> None:
             try:
                 self._flush()
             except AgendaError as error:
                 log.warning("%s; retrying in %s s", error, RETRY_AFTER_S)
-                self._flush_at_us = now_us + RETRY_AFTER_S * US_PER_S
+                with self._lock:
+                    if self._queue:
+                        self._flush_at_us = now_us + RETRY_AFTER_S * US_PER_S
+
+        return flush
 
     # ------------------------------------------------------------------ the log
 
@@ -249,25 +319,23 @@ class Agenda:
 
     def history(self, user_id: str | None, outcome: Outcome | None = None) -> list[Occurrence]:
         """Deliveries and misses, oldest first."""
-        with self._lock:
-            self._flush()
-            query = select(OccurrenceRow).order_by(OccurrenceRow.fire_time, OccurrenceRow.id)
-            if user_id is not None:
-                query = query.where(OccurrenceRow.user_id == user_id)
-            if outcome is not None:
-                query = query.where(OccurrenceRow.outcome == str(outcome))
-            with self._sessions() as session:
-                return [_occurrence(row) for row in session.scalars(query)]
+        self._flush()
+        query = select(OccurrenceRow).order_by(OccurrenceRow.fire_time, OccurrenceRow.id)
+        if user_id is not None:
+            query = query.where(OccurrenceRow.user_id == user_id)
+        if outcome is not None:
+            query = query.where(OccurrenceRow.outcome == str(outcome))
+        with self._sessions() as session:
+            return [_occurrence(row) for row in session.scalars(query)]
 
     # ------------------------------------------------------------------ privacy
 
     def export_user(self, user_id: str) -> dict[str, list[dict[str, Any]]]:
         """The user's items and their delivery log, as stored (``dms users export``)."""
-        with self._lock:
-            self._flush()
-            with self._sessions() as session:
-                data = USER_DATA.export_user(session, user_id)
-            return data or {"items": [], "log": []}
+        self._flush()
+        with self._sessions() as session:
+            data = USER_DATA.export_user(session, user_id)
+        return data or {"items": [], "log": []}
 
     def erase_user(self, user_id: str) -> None:
         """Delete the user's items and log, and forget their items here.
@@ -275,8 +343,8 @@ class Agenda:
         :meth:`memory.ProfileStore.erase` deletes the same rows with the profile; this
         is for the process that holds the agenda's index (the daemon).
         """
-        with self._lock:
-            self._flush()
+        self._flush()
+        with self._io_lock:
             try:
                 with self._sessions.begin() as session:
                     USER_DATA.erase_user(session, user_id)
@@ -284,8 +352,9 @@ class Agenda:
                 raise AgendaError(
                     f"cannot erase the agenda of {user_id}: {_one_line(error)}"
                 ) from None
-            for item_id in self._index.user_items(user_id):
-                self._index.drop(item_id)
+            with self._lock:
+                for item_id in self._index.user_items(user_id):
+                    self._index.drop(item_id)
 
     # ------------------------------------------------------------------ internals
 
@@ -297,31 +366,54 @@ class Agenda:
                 self._flush_at_us = now_us + FLUSH_AFTER_S * US_PER_S
 
     def _flush(self) -> None:
-        """Write queued misses and deliveries, each with its item's new cursor."""
-        if not self._queue:
-            self._flush_at_us = None
-            return
-        try:
-            with self._engine.begin() as connection:
-                gone = _write(connection, self._queue)
-        except SQLAlchemyError as error:
-            raise AgendaError(f"cannot write the agenda's log: {_one_line(error)}") from None
-        self._queue.clear()
-        for item_id in gone:  # removed or erased by another process: forget it here too
-            self._index.drop(item_id)
-        self._flush_at_us = None
+        """Write queued misses and deliveries, each with its item's new cursor.
+
+        The database is written without the index's lock: the tick can go on meanwhile
+        (what it queues then waits for the next flush). Never call it holding ``_lock``.
+        """
+        with self._io_lock:
+            with self._lock:
+                records = list(self._queue)
+                if not records:
+                    self._flush_at_us = None
+                    return
+            try:
+                with self._engine.begin() as connection:
+                    gone = _write(connection, records)
+            except SQLAlchemyError as error:
+                raise AgendaError(f"cannot write the agenda's log: {_one_line(error)}") from None
+            with self._lock:
+                del self._queue[: len(records)]
+                for item_id in gone:  # removed or erased by another process: forget it here
+                    self._index.drop(item_id)
+                if not self._queue:
+                    self._flush_at_us = None
 
     def _load(self, user_id: str | None) -> None:
-        """Bring the index in line with the database, for one user or everyone."""
+        """Bring the index in line with the database, for one user or everyone.
+
+        Reads without the index's lock, then updates the index under it.
+        """
         query = select(ItemRow).where(ItemRow.next_fire.is_not(None))
         if user_id is not None:
             query = query.where(ItemRow.user_id == user_id)
-        with self._sessions() as session:
+        with self._io_lock, self._sessions() as session:
             rows = list(session.scalars(query))
+        with self._lock:
+            self._apply_rows(rows, user_id)
+
+    def _apply_rows(self, rows: Sequence[ItemRow], user_id: str | None) -> None:
+        """The index after reading ``rows`` (``_lock`` held).
+
+        An item with a record still queued keeps its cursor here: the row is older.
+        """
+        queued = {record.item.item_id for record in self._queue}
         seen: set[int] = set()
         for row in rows:
             seen.add(row.id)
             known = self._index.entries.get(row.id)
+            if known is not None and row.id in queued:
+                continue
             if (
                 known is not None
                 and row.next_fire is not None

@@ -31,6 +31,9 @@ from memory import ActivityChooser, PreferenceModel, ProfileError, ProfileStore,
 from memory.db import default_url
 from motivation import MotivationConfigError, MotivationModel, load_config
 
+WRITER_BUSY_TIMEOUT_S = 1.0
+"""SQLite lock wait of the daemon's store writer: past it the writes are spooled."""
+
 
 @dataclass
 class Stack:
@@ -61,6 +64,10 @@ class Stack:
             self.chooser.retrain()
 
     def close(self) -> None:
+        # The profile writes first: what cannot be written is spooled and reported.
+        profiles = self.controller.deps.profiles
+        if profiles is not None:
+            profiles.close()
         if self.store is not None:
             self.store.close()
         if self.agenda is not None:
@@ -92,6 +99,7 @@ def build_stack(
     with_memory: bool = True,
     robot_state: Callable[[], dict[str, Any]] = dict,
     retrain: bool = True,
+    background_io: bool = True,
 ) -> Stack:
     """Open everything ``settings`` names; raise DmsError with one line if anything is wrong.
 
@@ -99,6 +107,8 @@ def build_stack(
     retraining runs in a thread, and a seeded run must not depend on thread timing).
     With ``retrain=True`` (the daemon) the chooser starts on the seed model and
     :meth:`Stack.when_ready` trains from the store in the background.
+    ``background_io=False`` runs the store's and the agenda's database work inline, not on
+    their threads (the simulator, for the same reason).
     """
     rng = rng or random.Random(settings.seed)
     try:
@@ -125,10 +135,10 @@ def build_stack(
     if with_memory:
         url = settings.db or default_url()
         try:
-            store = ProfileStore(url)
+            store = ProfileStore(url, WRITER_BUSY_TIMEOUT_S if background_io else None)
         except ProfileError as error:
             raise ConfigError(f"database {url}: {error}") from None
-        profiles = ProfileService(store, report_error)
+        profiles = ProfileService(store, report_error, threaded=background_io)
         if retrain:
             model = PreferenceModel.from_seed()  # the store's model: Stack.when_ready
         else:  # the simulator: trained here, so that a seeded run never depends on threads
@@ -148,8 +158,9 @@ def build_stack(
             return user_id in store.list_ids()
 
         try:
-            agenda = Agenda(url, user_exists=user_exists)
+            agenda = Agenda(url, user_exists=user_exists, background=background_io)
         except AgendaError as error:
+            profiles.close()
             store.close()
             raise ConfigError(f"agenda {url}: {error}") from None
     expression = ExpressionArbiter(

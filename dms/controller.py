@@ -140,7 +140,8 @@ class ControllerDeps:
 @dataclass
 class _Session:
     user_id: str
-    session_id: int | None
+    session_id: str | None
+    """The key ProfileService made for it (the database's id comes later, off the tick)."""
     started: datetime
     mode: Mode
     p_user: float
@@ -516,7 +517,7 @@ class Controller:
         # the session first, so that ChooseMode sees params.user (the profile and its id)
         self._session = session = _Session(
             user_id=user_id,
-            session_id=session_id if isinstance(session_id, int) else None,
+            session_id=session_id if isinstance(session_id, str) else None,
             started=now,
             mode="hybrid",
             p_user=0.5,
@@ -535,6 +536,9 @@ class Controller:
             self.deps.chooser.session_ended(now)  # retrains in the background, if due
 
     def _load_profile(self, user_id: str, now: datetime) -> Profile | None:
+        """Read off the tick: a healthy database answers within the tick (LOAD_WAIT_S);
+        else the session begins at once on the cached (or an empty) profile, and the
+        profile is used as soon as it lands (the user is not kept waiting)."""
         if self.deps.profiles is None:
             return None
         return self.deps.profiles.load(user_id, now)

@@ -1,110 +1,142 @@
-"""The controller's view of the profile store: cached snapshots and retried writes.
+"""The controller's view of the profile store: cached snapshots, writes off the tick.
 
-The decision loop must keep deciding when the database has a problem: this wrapper
-keeps the last snapshot of each profile it loaded, reports a failed load, and the
-first write of an outage, in one line through ``report`` (the daemon publishes it on
-``dms/errors``), queues the writes that failed and every write behind them, and
-replays them in order every few seconds.
+The decision loop must keep deciding whatever the database does. Every profile read
+and write goes through a :class:`dms.storage.StorageWriter`: a writer thread in the
+daemon (the tick never waits on the database), inline in the simulator (a seeded run
+stays deterministic). Results refresh a cache of profile snapshots that the controller
+reads. A write the database cannot take now is spooled to a durable file and replayed
+in order; one it refuses for good is quarantined with a report (``report``: the daemon
+publishes it on ``dms/errors``). A session is named by a key made here, so that the
+controller need not wait for the database's id.
 """
 
 from __future__ import annotations
 
 import logging
-from collections import deque
+import threading
+import uuid
 from collections.abc import Callable
 from datetime import datetime
+from pathlib import Path
 from typing import Any
 
-from memory import Profile, ProfileError, ProfileStore, StoreUnavailable
+from dms.storage import QUEUE_SIZE, RETRY_EVERY_S, StorageWriter, Waiter, Write
+from memory import Profile, ProfileStore
+from memory.db import side_file
+from memory.errors import StoreRefused
+
+__all__ = ["LOAD_WAIT_S", "RETRY_EVERY_S", "ProfileService"]
 
 log = logging.getLogger(__name__)
 
-RETRY_EVERY_S = 5.0
-OUTBOX_SIZE = 10_000
-"""Writes kept during an outage; beyond it the oldest is lost (and reported)."""
+LOAD_WAIT_S = 0.05
+"""How long :meth:`ProfileService.load` waits for a profile read off the tick: long
+enough for a healthy database, so the session starts with the profile in the same tick;
+short enough that a locked or absent database costs the tick nothing noticeable."""
+
+_RECORD_ACTIVITY_SESSION = 7  # the position of session_id in ProfileStore.record_activity
 
 
 class ProfileService:
-    """Profile loads and writes for the controller, resilient to database outages."""
+    """Profile loads and writes for the controller; none waits on the database."""
 
     def __init__(
         self,
         store: ProfileStore,
         report: Callable[[str, str], None],
-        outbox_size: int = OUTBOX_SIZE,
+        *,
+        threaded: bool = True,
+        queue_size: int = QUEUE_SIZE,
+        spool_path: Path | None = None,
+        quarantine_path: Path | None = None,
     ) -> None:
         self.store = store
-        self._report = report
         self._cache: dict[str, Profile] = {}
-        self._outbox: deque[tuple[str, tuple[Any, ...], dict[str, Any]]] = deque(maxlen=outbox_size)
-        self._last_retry: datetime | None = None
+        self._cache_lock = threading.Lock()
+        self.writer = StorageWriter(
+            self._apply,
+            spool_path or side_file(store.url, "spool"),
+            quarantine_path or side_file(store.url, "quarantine"),
+            report,
+            self._done,
+            threaded=threaded,
+            queue_size=queue_size,
+        )
+        self.writer.start()
 
-    def load(self, user_id: str, now: datetime) -> Profile | None:
-        """Load or create ``user_id``'s profile; the cached one if the store is down."""
-        try:
-            profile = self.store.get_or_create(user_id, now)
-        except StoreUnavailable as error:
-            self._report("memory", f"cannot load profile {user_id}: {error}")
-            return self._cache.get(user_id)
-        self._cache[user_id] = profile
-        return profile
+    def load(self, user_id: str, now: datetime, wait_s: float = LOAD_WAIT_S) -> Profile | None:
+        """Read (or create) ``user_id``'s profile off the tick, waiting at most ``wait_s``.
+
+        Returns the profile, or meanwhile the cached one (None for a user never loaded);
+        the cache is refreshed when the read lands.
+        """
+        waiter = Waiter()
+        self.writer.submit(Write("get_or_create", (user_id, now)), waiter)
+        waiter.wait(wait_s)
+        if isinstance(waiter.result, Profile):
+            return waiter.result
+        return self.cached(user_id)
 
     def cached(self, user_id: str) -> Profile | None:
-        return self._cache.get(user_id)
+        with self._cache_lock:
+            return self._cache.get(user_id)
 
     def call(self, method: str, *args: Any, **kwargs: Any) -> Any:
-        """Call a store method; on an outage queue it for retry and return None.
+        """Queue the store call ``method``; returns None, or for ``start_session`` its key.
 
-        Queued writes go first: a write is never overtaken by a later one.
+        The key stands for the session's id in later calls (``end_session``,
+        ``record_activity``), also after a restart when the calls were spooled.
         """
-        if self._outbox and not self._replay():
-            self._queue(method, args, kwargs)
-            return None
-        try:
-            result = getattr(self.store, method)(*args, **kwargs)
-        except StoreUnavailable as error:
-            self._report("memory", f"{method} failed, will retry: {error}")
-            self._queue(method, args, kwargs)
-            return None
-        except ProfileError as error:
-            self._report("memory", f"{method} refused: {error}")
-            return None
-        if isinstance(result, Profile):
-            self._cache[result.user_id] = result
-        return result
-
-    def _queue(self, method: str, args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
-        """Keep a write for later; a full outbox loses its oldest write, and says so."""
-        if len(self._outbox) == self._outbox.maxlen:
-            dropped = self._outbox[0][0]
-            self._report("memory", f"outbox full: the oldest queued {dropped} is lost")
-        self._outbox.append((method, args, kwargs))
+        if method == "start_session":
+            key = f"session-{uuid.uuid4().hex}"
+            self.writer.submit(Write(method, args, {**kwargs, "key": key}))
+            return key
+        self.writer.submit(Write(method, args, kwargs))
+        return None
 
     def retry(self, now: datetime) -> None:
-        """Replay queued writes, oldest first, at most every RETRY_EVERY_S."""
-        if not self._outbox:
-            return
-        if self._last_retry and (now - self._last_retry).total_seconds() < RETRY_EVERY_S:
-            return
-        self._last_retry = now
-        self._replay()
-
-    def _replay(self) -> bool:
-        """Replay queued writes in order; False if the store is still unavailable."""
-        while self._outbox:
-            method, args, kwargs = self._outbox[0]
-            try:
-                result = getattr(self.store, method)(*args, **kwargs)
-            except StoreUnavailable:
-                return False
-            except ProfileError as error:
-                log.warning("dropping a queued %s: %s", method, error)
-            else:
-                if isinstance(result, Profile):
-                    self._cache[result.user_id] = result
-            self._outbox.popleft()
-        return True
+        """Called every tick: without a writer thread, replay the spool when due."""
+        self.writer.poll(now.timestamp())
 
     @property
     def pending_writes(self) -> int:
-        return len(self._outbox)
+        """Writes not yet in the database (queued, in flight or spooled)."""
+        return self.writer.pending
+
+    def close(self) -> int:
+        """Finish or spool what is queued; returns how many writes stay spooled (reported)."""
+        return self.writer.close()
+
+    # ------------------------------------------------------------------ the writer's side
+
+    def _apply(self, write: Write) -> Any:
+        """Run one write against the store (the writer's thread)."""
+        args, kwargs = list(write.args), dict(write.kwargs)
+        if write.method == "start_session":
+            key = str(kwargs.pop("key"))
+            session_id = self.store.start_session(*args, **kwargs)
+            self.writer.bind(key, session_id)
+            return session_id
+        if write.method == "end_session" and args:
+            args[0] = self._session_id(args[0], required=True)
+        elif write.method == "record_activity":
+            if "session_id" in kwargs:
+                kwargs["session_id"] = self._session_id(kwargs["session_id"])
+            elif len(args) > _RECORD_ACTIVITY_SESSION:
+                args[_RECORD_ACTIVITY_SESSION] = self._session_id(args[_RECORD_ACTIVITY_SESSION])
+        return getattr(self.store, write.method)(*args, **kwargs)
+
+    def _session_id(self, key: Any, required: bool = False) -> int | None:
+        if not isinstance(key, str):
+            return key if isinstance(key, int) else None
+        session_id = self.writer.binds.get(key)
+        if session_id is None:
+            if required:
+                raise StoreRefused(f"session_id: the session {key} was never stored")
+            log.warning("session %s was never stored; the run is logged without it", key)
+        return session_id
+
+    def _done(self, write: Write, result: Any) -> None:
+        if isinstance(result, Profile):
+            with self._cache_lock:
+                self._cache[result.user_id] = result

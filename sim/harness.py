@@ -113,6 +113,7 @@ class Simulation:
                 rng=random.Random(seed),
                 with_memory=with_memory,
                 retrain=False,
+                background_io=False,
             )
         except BaseException:
             self._cleanup_tmp()
