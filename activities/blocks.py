@@ -487,9 +487,11 @@ class Ask(Block):
 class Menu(Ask):
     DOC = (
         "Show the user-selectable activities and take the choice (screen, or saying an "
-        "activity or a synonym); the chosen activity becomes the result's redirect."
+        "activity or a synonym); the chosen activity becomes the result's redirect. "
+        '"You choose" (or "surprise me"...) declines: the user leaves the choice '
+        "to the robot."
     )
-    OUTCOMES = ("chosen", "no_answer")
+    OUTCOMES = ("chosen", "declined", "no_answer")
     PARAMS: ClassVar[dict[str, Param]] = {
         "title": Param("string", default="What would you like to do?"),
         "options": Param("string_list", default=list(USER_SELECTABLE)),
@@ -518,9 +520,12 @@ class Menu(Ask):
                 return text
             named = match_activity(text)
         elif isinstance(event, Speech):
-            named = match_activity(event.text)
+            text = event.text
+            named = match_activity(text)
         else:
             return None
+        if named is None and declines(text):
+            return DECLINED
         return named if named in options else None
 
     def on_event(self, event: Event) -> bool:
@@ -534,9 +539,34 @@ class Menu(Ask):
         return True
 
     def answered(self, answer: str) -> str:
+        if answer == DECLINED:
+            return "declined"
         self.ud[self.args["key"]] = answer
         self.rt.redirect = answer
         return "chosen"
+
+
+DECLINED = "\x00declined"
+"""The answer that leaves the choice to the robot (never an option's name)."""
+
+_DECLINING = (
+    "you choose",
+    "you decide",
+    "your choice",
+    "surprise me",
+    "you pick",
+    "up to you",
+    "whatever you like",
+    "whatever you want",
+    "i don't mind",
+    "i don't know",
+)
+
+
+def declines(text: str) -> bool:
+    """True if ``text`` leaves the choice to the robot ("you choose", "surprise me")."""
+    folded = " ".join(text.lower().replace("’", "'").split())
+    return any(phrase in folded for phrase in _DECLINING)
 
 
 # ---------------------------------------------------------------- decisions and data

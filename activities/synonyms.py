@@ -61,3 +61,16 @@ def match_activity(text: str) -> str | None:
         if pattern.search(spoken):
             return name
     return None
+
+
+_REQUEST_CUES = re.compile(
+    r"\b(let'?s|let us|play|start|put on|i want|i'd like|i would like|can we|could we|"
+    r"shall we|how about|tell me|show me|do some|do the|time for)\b"
+)
+
+
+def requests_activity(text: str) -> bool:
+    """True if ``text`` asks for the activity it names ("let's play bingo"), rather than
+    mentioning it ("I like the news" as the answer to a question on hobbies)."""
+    spoken = " ".join(text.lower().replace("’", "'").split())
+    return match_activity(spoken) is not None and _REQUEST_CUES.search(spoken) is not None

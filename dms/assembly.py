@@ -168,6 +168,7 @@ def build_stack(
         on_command,
         ack_timeout_s=settings.controller.ack_timeout_s,
         done_timeout_s=settings.controller.done_timeout_s,
+        offline_after_unacked=settings.controller.offline_after_unacked,
     )
     inputs = InputBoard(settings.inputs.stale_after_s)
     deps = ControllerDeps(
@@ -179,7 +180,6 @@ def build_stack(
         rules=rules,
         chooser=chooser,
         questions=questions,
-        offline_after_unacked=settings.controller.offline_after_unacked,
         report_error=report_error,
         robot_state=robot_state,
     )

@@ -102,6 +102,9 @@ class ControllerSettings(_Section):
     """A robot command started but not done within this (plus a media's length) fails it."""
     min_speech_confidence: float = Field(0.5, ge=0.0, le=1.0)
     """An utterance recognized with less confidence is not understood (the question waits)."""
+    perception_grace_s: float = Field(60.0, gt=0.0)
+    """How long a session outlives stale or missing ``perception/user`` (the user is then
+    unknown, not gone: the activity goes on, nothing new starts) before it ends."""
     offline_after_unacked: int = Field(3, ge=1)
     """Commands in a row the robot never acknowledges before it is marked offline."""
     offline_retry_max_s: float = Field(300.0, gt=0.0)

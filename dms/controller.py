@@ -29,7 +29,7 @@ from datetime import datetime, timedelta
 from typing import Any
 
 from activities import ActivityContext, BehaviorLibrary, reload_rules_and_behaviors
-from activities.synonyms import match_activity
+from activities.synonyms import match_activity, requests_activity
 from agenda import Agenda, DueItem
 from dms import keys
 from dms.activity_names import ACTIVITIES, ENTERTAINMENT_ACTIVITIES, ManagerName, manager_of
@@ -137,6 +137,19 @@ class ControllerDeps:
     robot_state: Callable[[], Mapping[str, Any]] = dict
 
 
+@dataclass(frozen=True, slots=True)
+class _Asked:
+    """A start or cancel asked for, served at the next decision point of this tick."""
+
+    target: str
+    """The activity to start; empty for a cancel."""
+    chosen_by: ChosenBy | None
+    detail: str
+    own: bool
+    """The user's own act (voice, screen, a request ``by`` the user), not an app's or a
+    caregiver's: only the user's own acts tell their proactivity and preferences."""
+
+
 @dataclass
 class _Session:
     user_id: str
@@ -150,6 +163,9 @@ class _Session:
     activities_done: int = 0
     asked: set[str] = field(default_factory=set)
     last_activity: str | None = None
+    robot_turn: bool = False
+    """The user left the choice to the robot (declined the menu): the next pick is the
+    robot's."""
 
 
 class Controller:
@@ -186,13 +202,14 @@ class Controller:
         self._session: _Session | None = None
         self._snapshot: InputSnapshot | None = None
         self._user: UserPerception | None = None
-        self._requests: list[tuple[str, ChosenBy | None, str]] = []
+        self._requests: list[_Asked] = []
         self._touches: list[tuple[str, str]] = []
         self._state: DmsState | None = None
-        self._barrier = FaultBarrier(
         self._robot_blocked = False
+        self._unknown_since: datetime | None = None
         self._probe_at: datetime | None = None
         self._probe_wait_s = 0.0
+        self._barrier = FaultBarrier(
             deps.report_error, clock=lambda: self._now.timestamp() if self._now else 0.0
         )
 
@@ -214,8 +231,8 @@ class Controller:
             self._step_motivation(snapshot, now)
         with guard("robot"):
             self.deps.expression.update(now)
-        if self.deps.profiles is not None:
             self._robot_blocked = self._robot_unreachable(now)
+        if self.deps.profiles is not None:
             with guard("memory"):
                 self.deps.profiles.retry(now)
         with guard("user", self._user):
@@ -331,23 +348,57 @@ class Controller:
             self._on_answer(message.choice, "screen", message, now)
 
     def _on_request(self, request: Request, now: datetime) -> None:
+        """A request from another program: served in this tick, or answered with why not."""
         by = request.by or "request"
+        own = self._is_the_user(request.by)
+        running = self.current
         if request.action == "reload_rules":
             self.reload_rules()
         elif request.action == "start" and request.activity is not None:
-            self._requests.append((request.activity, "user", f"requested by {by}"))
-        elif request.action == "cancel" and self.current is not None:
-            if request.activity in (None, self.current.name):
-                self._requests.append(("", "user", f"cancel requested by {by}"))
-        elif request.action == "pause" and self.current is not None and not self.current.paused:
-            self._pause(self.current, "user_request", now, f"requested by {by}")
-        elif (
-            request.action == "resume"
-            and self.current is not None
-            and self.current.paused
-            and self.dialog is None
-        ):
-            self._resume(self.current, "user_request", now, f"requested by {by}")
+            self._close_question(now)
+            self._requests.append(_Asked(request.activity, "user", f"requested by {by}", own))
+            if own:
+                self._note_initiative(True, now)
+        elif request.action == "start":
+            self._refuse(request, "start needs an activity")
+        elif request.action == "cancel" and running is not None:
+            if request.activity in (None, running.name):
+                self._close_question(now)
+                self._requests.append(_Asked("", "user", f"cancel requested by {by}", own))
+            else:
+                self._refuse(request, f"{request.activity} does not run ({running.name} does)")
+        elif request.action == "pause" and running is not None and not running.paused:
+            self._pause(running, "user_request", now, f"requested by {by}")
+        elif request.action == "resume" and running is not None and running.paused:
+            if self.dialog is not None and self.dialog.kind is DialogKind.CONFIRM_CANCEL:
+                self.dialog.offer("continue", "request")  # the answer to "continue or stop?"
+                self._advance_dialog(now)
+            else:
+                self._resume(running, "user_request", now, f"requested by {by}")
+        elif running is None:
+            self._refuse(request, f"nothing to {request.action}: no activity runs")
+        else:
+            state = "paused" if running.paused else "running"
+            self._refuse(request, f"nothing to {request.action}: {running.name} is {state}")
+
+    def _is_the_user(self, by: str | None) -> bool:
+        """A request ``by`` the user in front of the robot (``"user"`` or their id)."""
+        session = self._session
+        return by is not None and session is not None and by in ("user", session.user_id)
+
+    def _refuse(self, request: Request, why: str) -> None:
+        """A request that cannot be served: said on ``dms/errors``, never dropped silently."""
+        who = request.by or "request"
+        self.deps.report_error(keys.REQUEST, f"{request.action} by {who}: {why}")
+
+    def _close_question(self, now: datetime) -> None:
+        """A request arrived while a general or feedback question is open: the request
+        wins, the question closes at once (not counted as unanswered)."""
+        dialog = self.dialog
+        if dialog is not None and dialog.kind in (DialogKind.GENERAL_QUESTION, DialogKind.FEEDBACK):
+            self.dialog = None
+            self._question = None
+            self.deps.expression.interrupt_source(DIALOG_SOURCE, now)
 
     def _on_touch(self, touch: Touch, now: datetime) -> None:
         running = self.current
@@ -370,20 +421,28 @@ class Controller:
     def _on_answer(
         self, text: str, channel: str, event: Speech | ScreenChoice, now: datetime
     ) -> None:
+        wanted = match_activity(text)
         if self.dialog is not None:
-            if self.dialog.offer(text, channel):
-                self._advance_dialog(now)
-            return
+            asks_instead = (
+                wanted is not None
+                and self.dialog.kind in (DialogKind.GENERAL_QUESTION, DialogKind.FEEDBACK)
+                and (bool(self.dialog.choices) or requests_activity(text))
+            )
+            if not asks_instead:
+                if self.dialog.offer(text, channel):
+                    self._advance_dialog(now)
+                return
+            self._close_question(now)
         running = self.current
         if running is not None and self.managers[running.manager].deliver(event):
             return
-        wanted = match_activity(text)
         if (
             wanted is not None
             and wanted in ACTIVITIES
             and (running is None or wanted != running.name)
         ):
-            self._requests.append((wanted, "user", f"asked by {channel}: {text[:60]!r}"))
+            detail = f"asked by {channel}: {text[:60]!r}"
+            self._requests.append(_Asked(wanted, "user", detail, own=True))
             self._note_initiative(True, now)
 
     # ------------------------------------------------------------------ dialogs
@@ -425,6 +484,7 @@ class Controller:
         if running is None:
             return
         if dialog.answer is not None and dialog.answer in CONFIRM_STOP:
+            self._note_initiative(True, now)  # the user stopped it: their own initiative
             self._cancel(running, "confirm_cancel", now, f"the user said {dialog.answer!r}")
             self._finish_user_activity(running, "cancelled", now, ask_feedback=False)
             self.current = None
@@ -479,18 +539,38 @@ class Controller:
             return user.user_id
         return None
 
+    def _perception_unknown(self) -> bool:
+        """``perception/user`` is stale or missing: who is there is unknown (not "nobody")."""
+        return self._snapshot is not None and keys.PERCEPTION_USER not in self._snapshot.values
+
     def _track_user(self, now: datetime) -> None:
         ready = self._ready_user()
         session = self._session
-        if session is not None and self._user_gone(session.user_id):
-            missing = (
-                self._snapshot is not None and keys.PERCEPTION_USER not in self._snapshot.values
+        reason: Reason = "user_left"
+        if session is not None and self._perception_unknown():
+            # An absent module is not considered (seed 001): the session and its activity
+            # go on, nothing new starts, and only a long silence ends the session.
+            since = self._unknown_since = self._unknown_since or now
+            if (now - since).total_seconds() < self.settings.perception_grace_s:
+                return
+            reason = "input_missing"
+        else:
+            self._unknown_since = None
+        gone = session is not None and (
+            reason == "input_missing" or self._user_gone(session.user_id)
+        )
+        if session is not None and gone:
+            self._unknown_since = None
+            why = (
+                f"no perception of {session.user_id} for {self.settings.perception_grace_s:g} s"
+                if reason == "input_missing"
+                else f"{session.user_id} is gone"
             )
-            reason: Reason = "input_missing" if missing else "user_left"
+            outcome = "cancelled" if reason == "user_left" else "stopped"
             for running in (self.current, self.suspended):
                 if running is not None and running.user_id == session.user_id:
-                    self._cancel(running, reason, now, f"{session.user_id} is gone")
-                    self._finish_user_activity(running, "cancelled", now, ask_feedback=False)
+                    self._cancel(running, reason, now, why)
+                    self._finish_user_activity(running, outcome, now, ask_feedback=False)
                     if running is self.current:
                         self.current = None
                     else:
@@ -620,14 +700,14 @@ class Controller:
         args: Mapping[str, Any] | None = None,
         agenda_item: DueItem | None = None,
     ) -> bool:
-        manager = manager_of(name)
-        reply = self.managers[manager].start(name, self._context(name), now, args)
-        if reply.status is not ManagerStatus.RUNNING:
-            self.counters.not_loaded += 1
         if self._robot_blocked:
             if chosen_by == "user" or reason == "user_request":  # said, never dropped silently
                 self._decide("fail", name, "activity_error", chosen_by, "the robot is offline", now)
             return False
+        manager = manager_of(name)
+        reply = self.managers[manager].start(name, self._context(name), now, args)
+        if reply.status is not ManagerStatus.RUNNING:
+            self.counters.not_loaded += 1
             self._decide("fail", name, "activity_error", chosen_by, reply.detail, now)
             return False
         user_id = self._session.user_id if self._session else None
@@ -674,6 +754,9 @@ class Controller:
             self._decide(
                 "complete", running.name, "completed", running.chosen_by, reply.detail, now
             )
+            if running.name == "menu" and not reply.redirect and self._session is not None:
+                self._note_initiative(False, now)  # offered the choice, left it to the robot
+                self._session.robot_turn = True
             self._finish_user_activity(running, "completed", now, ask_feedback=not reply.redirect)
             if reply.redirect:
                 self._follow_redirect(running, reply.redirect, now)
@@ -753,10 +836,13 @@ class Controller:
                 return
         # (b) the user asked to change
         if self._requests:
-            target, chosen_by, detail = self._requests.pop(0)
+            asked = self._requests.pop(0)
+            target, chosen_by, detail = asked.target, asked.chosen_by, asked.detail
             if target != running.name:
                 self._cancel(running, "user_request", now, detail)
-                self._finish_user_activity(running, "cancelled", now, ask_feedback=False)
+                # an app's or a caregiver's stop says nothing of what the user likes
+                outcome = "cancelled" if asked.own else "stopped"
+                self._finish_user_activity(running, outcome, now, ask_feedback=False)
                 self.current = None
                 if self.suspended is not None:
                     self._cancel(self.suspended, "user_request", now, detail)
@@ -783,7 +869,7 @@ class Controller:
                 and self._interruption_allowed(running)
             ):
                 self._cancel(running, "agenda", now, f"event {item.item_id} ({item.activity})")
-                self._finish_user_activity(running, "cancelled", now, ask_feedback=False)
+                self._finish_user_activity(running, "stopped", now, ask_feedback=False)
                 self.current = None
                 self._run_agenda_item(item, now)
                 return
@@ -797,11 +883,13 @@ class Controller:
     def _choose(self, now: datetime) -> None:
         ready = self._ready_user()
         session = self._session
+        if session is not None and self._perception_unknown():
+            return  # the user may still be there: start nothing until perception says
         if ready is None or session is None:
             if self._requests:
-                target, chosen_by, detail = self._requests.pop(0)
-                if target:
-                    self._start(target, "user_request", chosen_by, now, detail)
+                asked = self._requests.pop(0)
+                if asked.target:
+                    self._start(asked.target, "user_request", asked.chosen_by, now, asked.detail)
                 return
             behavior = self._motivated_behavior()
             self._start(
@@ -809,16 +897,17 @@ class Controller:
             )
             return
         if self._requests:
-            target, chosen_by, detail = self._requests.pop(0)
-            if target:
-                self._start(target, "user_request", chosen_by, now, detail)
+            asked = self._requests.pop(0)
+            if asked.target:
+                self._start(asked.target, "user_request", asked.chosen_by, now, asked.detail)
                 return
         for item in self._due_items(now):
             self._run_agenda_item(item, now)
             return
         if self._ask_general_question(session, now):
             return
-        if self.rng.random() < session.p_user:
+        robot_turn, session.robot_turn = session.robot_turn, False
+        if not robot_turn and self.rng.random() < session.p_user:
             self._start("menu", "user_choice", "user", now, session.mode_detail)
             return
         self._robot_choice(session, now)
@@ -951,10 +1040,6 @@ class Controller:
         if self._session is not None:
             self._profiles_call("record_initiative", self._session.user_id, took, now)
 
-    # ------------------------------------------------------------------ output
-
-    def _decide(
-        self,
     # ------------------------------------------------------------------ the robot link
 
     def _robot_unreachable(self, now: datetime) -> bool:
@@ -986,6 +1071,10 @@ class Controller:
         self._probe_at = now + timedelta(seconds=self._probe_wait_s)
         return False
 
+    # ------------------------------------------------------------------ output
+
+    def _decide(
+        self,
         action: DecisionAction,
         activity: str | None,
         reason: str,
@@ -1043,11 +1132,11 @@ class Controller:
             suspended=self._activity_state(self.suspended),
             motivation=motivation,
             inputs=dict(self._snapshot.status) if self._snapshot else {},
+            robot_link="offline" if self.deps.expression.robot_offline else "ok",
         )
 
     @property
     def state(self) -> DmsState | None:
-            robot_link="offline" if self.deps.expression.robot_offline else "ok",
         """The state after the last tick."""
         return self._state
 

@@ -34,7 +34,7 @@ from sqlalchemy.exc import TimeoutError as PoolTimeout
 from sqlalchemy.orm import Session, sessionmaker
 
 from dms.ids import InvalidIdentifier, check_identifier
-from memory import migrations
+from memory import migrations, proactivity
 from memory.db import as_url, default_url, make_engine
 from memory.errors import (
     ProfileError,
@@ -63,12 +63,9 @@ from memory.profile import (
 FAILURES_TO_SWITCH = 3
 """Consecutive unanswered prompts on one channel after which the style switches (Table 2)."""
 
-INITIATIVE_MIN_OBSERVATIONS = 5
-"""Chances to take the initiative needed before proactivity leaves ``unknown``."""
 
 COMPLETED_OUTCOMES = frozenset({"completed", "done", "succeeded", "success"})
 
-_UNIFORM_SD = math.sqrt(1 / 12)
 
 
 def _one_line(error: BaseException) -> str:
@@ -173,25 +170,6 @@ def snapshot(row: UserRow) -> Profile:
         initiative_taken=row.initiative_taken,
         initiative_offered=row.initiative_offered,
     )
-
-
-def estimate_proactivity(taken: int, offered: int) -> tuple[str, float]:
-    """Proactivity level and confidence from how often the user took the initiative.
-
-    The rate has a Beta(1 + taken, 1 + missed) posterior; the level is its mean cut in
-    thirds (low, moderate, high) once :data:`INITIATIVE_MIN_OBSERVATIONS` chances were
-    seen, and the confidence is one minus the posterior's standard deviation relative
-    to the uniform prior's (0 with no data, towards 1 with many).
-    """
-    a = 1.0 + taken
-    b = 1.0 + max(0, offered - taken)
-    mean = a / (a + b)
-    sd = math.sqrt(a * b / ((a + b) ** 2 * (a + b + 1)))
-    confidence = round(max(0.0, 1.0 - sd / _UNIFORM_SD), 4)
-    if offered < INITIATIVE_MIN_OBSERVATIONS:
-        return "unknown", confidence
-    level = "low" if mean < 1 / 3 else "moderate" if mean < 2 / 3 else "high"
-    return level, confidence
 
 
 class UserData(Protocol):
@@ -560,8 +538,22 @@ class ProfileStore:
                 setattr(row, name, value)
             if attributes:
                 row.attributes = {**(row.attributes or {}), **attributes}
+            if "robot_initiative_frequency" in columns:  # seeds the proactivity estimate
+                self._estimate_proactivity(row)
             row.updated_at = now
             return snapshot(row)
+
+    @staticmethod
+    def _estimate_proactivity(row: UserRow) -> None:
+        """Proactivity from the record of chances (:mod:`memory.proactivity`)."""
+        level, confidence = proactivity.estimate(
+            row.initiative_taken,
+            row.initiative_offered,
+            row.robot_initiative_frequency,
+            row.proactivity,
+        )
+        row.proactivity = level
+        row.proactivity_confidence = confidence
 
     def record_interaction(
         self, user_id: str, channel: str, answered: bool, now: datetime
@@ -596,12 +588,10 @@ class ProfileStore:
         _check_time("now", now)
         with self._session() as session:
             row = self._user(session, user_id)
-            row.initiative_offered += 1
-            row.initiative_taken += int(took_initiative)
-            level, confidence = estimate_proactivity(row.initiative_taken, row.initiative_offered)
-            if level != "unknown" or row.proactivity == "unknown":
-                row.proactivity = level
-            row.proactivity_confidence = confidence
+            row.initiative_taken, row.initiative_offered = proactivity.forget(
+                row.initiative_taken + int(took_initiative), row.initiative_offered + 1
+            )
+            self._estimate_proactivity(row)
             row.updated_at = now
             return snapshot(row)
 

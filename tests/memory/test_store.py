@@ -18,7 +18,8 @@ from memory import (
 )
 from memory.errors import StoreDamaged, StoreRefused
 from memory.parameters import user_parameter_types
-from memory.store import FAILURES_TO_SWITCH, INITIATIVE_MIN_OBSERVATIONS
+from memory.proactivity import MIN_CHANCES
+from memory.store import FAILURES_TO_SWITCH
 from tests.memory.conftest import NOW
 
 LATER = NOW + timedelta(minutes=10)
@@ -272,7 +273,7 @@ def test_proactivity_is_estimated_with_growing_confidence(
     for index, took in enumerate(pattern):
         profile = store.record_initiative("ann", took, NOW)
         confidences.append(profile.proactivity_confidence)
-        if index + 1 < INITIATIVE_MIN_OBSERVATIONS:
+        if index + 1 < MIN_CHANCES:
             assert profile.proactivity == "unknown"
     assert profile.proactivity == level
     assert store.get("ann").proactivity == level
