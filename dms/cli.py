@@ -17,6 +17,7 @@ from activities.cli import app as behavior_app
 from agenda.cli import app as agenda_app
 from dms.errors import DmsError
 from dms.rules.cli import app as rules_app
+from dms.secure_cli import app as secure_app
 from memory.cli import app as users_app
 from memory.cli import db_app
 from motivation.cli import app as motivation_app
@@ -37,6 +38,7 @@ app.add_typer(agenda_app, name="agenda", help="Per-user events and reminders.")
 app.add_typer(motivation_app, name="motivation", help="The motivational model.")
 app.add_typer(behavior_app, name="behavior", help="Behavior files: check, draw, step, run.")
 app.add_typer(sim_app, name="sim", help="Simulated sessions, studies and long-term runs.")
+app.add_typer(secure_app, name="secure", help="Mutual TLS and access control per role.")
 app.command("record")(record_command)
 
 
