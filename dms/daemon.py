@@ -197,8 +197,9 @@ class Daemon:
                 user_id = check_identifier(user_id, "user id")
             except InvalidIdentifier as error:
                 return False, {"error": str(error)}
-        with self._lock:
-            return handle_query(agenda, user_id, payload, self.clock.now())
+        # The agenda has its own lock and does its database work off it: holding the
+        # daemon's lock here would make the tick wait for the database.
+        return handle_query(agenda, user_id, payload, self.clock.now())
 
     def _guarded(self, key: str, handler: QueryHandler) -> QueryHandler:
         """``handler`` that answers every query: an exception becomes an error reply

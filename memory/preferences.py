@@ -33,7 +33,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from dms.activity_names import ENTERTAINMENT_ACTIVITIES
-from memory.errors import ProfileError
 from memory.profile import Profile
 from memory.seed_data import FEATURE_COLUMNS, SEED_CSV
 
@@ -321,13 +320,6 @@ class ActivityChooser:
             training.join(timeout)
         return training is None or not training.is_alive()
 
-    def _fresh(self, profile: Profile) -> Profile:
-        if self.store is None:
-            return profile
-        try:
-            return self.store.get(profile.user_id)
-        except ProfileError:  # the store is down or the user was erased: use what we hold
-            return profile
 
     def beliefs(self, profile: Profile) -> dict[str, tuple[float, float]]:
         """Per activity, Beta(alpha, beta) of how much the user likes it: the prediction
@@ -356,7 +348,8 @@ class ActivityChooser:
         the best of one draw from each belief (Thompson sampling), so little-known
         activities still get tried and favorites win as evidence grows.
         """
-        profile = self._fresh(profile)
+        # ``profile`` is the controller's cached one, kept current by the store's writer:
+        # the tick never reads the database here.
         beliefs = self.beliefs(profile)
         names = [name for name in ACTIVITIES if name not in exclude] or list(ACTIVITIES)
         untried = [name for name in names if name not in profile.scores]
