@@ -28,9 +28,15 @@ def free_port() -> int:
 
 
 def client_session(port: int) -> zenoh.Session:
+    """A peer connecting to ``port``, usually opened before the daemon listens there: it
+    retries every 50 ms (Zenoh's default, 1 s then doubling, made each test see the
+    daemon's ``alive/dms`` up to 1.3 s after it was declared)."""
     conf = zenoh.Config()
     conf.insert_json5("mode", '"peer"')
     conf.insert_json5("connect/endpoints", json.dumps([f"tcp/127.0.0.1:{port}"]))
+    conf.insert_json5(
+        "connect/retry", "{period_init_ms: 50, period_max_ms: 50, period_increase_factor: 1}"
+    )
     conf.insert_json5("listen/endpoints", "[]")
     conf.insert_json5("scouting/multicast/enabled", "false")
     return zenoh.open(conf)
