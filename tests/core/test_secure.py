@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 from cryptography import x509
+from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import NameOID
 
@@ -63,11 +64,11 @@ def test_every_role_certificate_chains_to_the_ca_and_names_loopback(tmp_path: Pa
         assert san.get_values_for_type(x509.DNSName) == ["localhost"]
         assert not cert.extensions.get_extension_for_class(x509.BasicConstraints).value.ca
         # the key on disk is the certificate's
-        from cryptography.hazmat.primitives import serialization
-
         key = serialization.load_pem_private_key((tmp_path / f"{role}.key").read_bytes(), None)
+        public = cert.public_key()
         assert isinstance(key, ec.EllipticCurvePrivateKey)
-        assert key.public_key().public_numbers() == cert.public_key().public_numbers()
+        assert isinstance(public, ec.EllipticCurvePublicKey)
+        assert key.public_key().public_numbers() == public.public_numbers()
 
 
 def test_the_daemon_listens_and_the_others_connect_on_tls_with_mtls(tmp_path: Path) -> None:
