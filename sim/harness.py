@@ -69,6 +69,7 @@ class Simulation:
         start: datetime | None = None,
         workdir: Path | None = None,
         with_memory: bool = True,
+        launch_delay_s: tuple[float, float] = (0.0, 0.0),
     ) -> None:
         from dms.assembly import build_stack
         from sim.robot import SimRobot
@@ -83,7 +84,8 @@ class Simulation:
         self.settings = settings.model_copy(update={"seed": seed})
         self.clock = VirtualClock(start)
         self.start = self.clock.now()
-        self.robot = SimRobot(rng_seed=seed)
+        self.robot = SimRobot(rng_seed=seed, launch_delay_s=launch_delay_s)
+        self.robot.process_of = self._process_of
         self.errors: list[tuple[float, str, str]] = []
         self.decisions: list[TimedDecision] = []
         self.commands = 0
@@ -153,6 +155,23 @@ class Simulation:
             self.user.on_command(command, now)
         for listener in self.command_listeners:
             listener(command, now)
+
+    def _process_of(self, command: RobotCommand) -> tuple[str, datetime] | None:
+        """The activity run that sends ``command`` (its name and start), for the robot's
+        launch delay: the arbiter's active handle on the channel names the source, the
+        controller's current or paused activity of that name is the run."""
+        handle = self.stack.expression.active(command.channel)
+        if handle is None or handle.command_id != command.id:
+            return None
+        if not handle.source.startswith("activity:"):
+            return None
+        name = handle.source[len("activity:") :]
+        for running in (self.controller.current, self.controller.suspended):
+            if running is not None and running.name == name:
+                return name, running.started
+        # Being started in this very tick (the manager's start sends its first command
+        # before the controller records the run): the run will start now.
+        return name, self.clock.now()
 
     def _on_error(self, key: str, error: str) -> None:
         self.errors.append((self.t, key, error))

@@ -5,7 +5,8 @@ A persona is a YAML file under ``sim/personas/`` (or any path). Its fields:
 - ``features``: what the user would tell the robot when asked (age, gender, ...);
 - ``preferences``: the hidden true liking, 0..1, of each of the 8 entertainment
   activities (missing ones are 0.5): used to tap menus, rate activities and lose patience;
-- ``proactivity``: ``low``, ``moderate`` or ``high`` (how often they take the initiative);
+- ``proactivity``: ``low``, ``moderate`` or ``high`` (how often they take the initiative:
+  a low one mostly leaves the menu's choice to the robot, "you choose");
 - ``speech``: recognition error rate, answer delays, chance of not answering, and
   whether they rather answer by voice or on the screen;
 - ``patience``: in an activity they like less than ``dislike_below`` they touch the
@@ -31,6 +32,9 @@ Proactivity = Literal["low", "moderate", "high"]
 Weekday = Literal["mon", "tue", "wed", "thu", "fri", "sat", "sun"]
 WEEKDAYS: tuple[Weekday, ...] = ("mon", "tue", "wed", "thu", "fri", "sat", "sun")
 FeatureValue = str | int | float | bool
+DECLINE_MENU_RATE: dict[str, float] = {"low": 0.8, "moderate": 0.0, "high": 0.0}
+"""By proactivity, the chance of leaving a menu's choice to the robot: what makes a
+persona's proactivity its true one (a low one lets the robot lead)."""
 
 
 class _Spec(BaseModel):
@@ -69,6 +73,11 @@ class SpeechHabits(_Spec):
     """Chance of not answering a question at all."""
     screen_rate: Probability = 0.5
     """Chance of answering on the touch screen when choices are shown."""
+    menu_delay_s: Span | None = None
+    """Time to look through a menu of activities and pick one (None: ``answer_delay_s``).
+    The seed's participants browsed touch-screen menus they had never seen."""
+    rating_delay_s: Span | None = None
+    """Time to rate an activity from 1 to 5 (None: ``answer_delay_s``)."""
 
 
 class Patience(_Spec):
@@ -126,6 +135,12 @@ class Persona(_Spec):
     proactivity: Proactivity = "moderate"
     ask_by_name_rate: Probability = 0.2
     """Chance, when the robot is free, of asking for a favourite activity by name."""
+    answers: dict[str, str] = Field(default_factory=dict)
+    """Set answers: a question containing the key (any case) is answered with the value,
+    e.g. ``{"how often should i start": "high"}``."""
+    decline_menu_rate: Probability | None = None
+    """Chance of leaving a menu's choice to the robot ("you choose"); None: by
+    proactivity (:data:`DECLINE_MENU_RATE`)."""
     speech: SpeechHabits = SpeechHabits()
     patience: Patience = Patience()
     arrive_after_s: Span = Span(min=1.0, max=3.0)
@@ -144,6 +159,12 @@ class Persona(_Spec):
             else None
         )
         return float(value) if value is not None else 0.5
+
+    def declines_menu(self) -> float:
+        """The chance that this user leaves the menu's choice to the robot."""
+        if self.decline_menu_rate is not None:
+            return self.decline_menu_rate
+        return DECLINE_MENU_RATE[self.proactivity]
 
     def favourites(self) -> list[str]:
         """Entertainment activities, best liked first."""

@@ -6,11 +6,20 @@ at the speaking rate, media by ``args.duration_s``, motions from a table, screen
 LED commands immediately. ``interrupt`` stops a command (``interrupted``).
 :meth:`SimRobot.set_fault` makes a channel fail its commands or drop them (never
 acknowledge), to test that the expression arbiter times them out.
+
+**Launching an activity.** On the Mini, starting an activity launches its own process,
+which loads its content before its first command plays; the seed's 3.78 s loading time
+includes it. :attr:`SimRobot.launch_delay_s` models that robot-side cost: when
+:attr:`SimRobot.process_of` (set by the simulation, which knows each command's source)
+names a process the robot has not launched yet, that command and every other command
+of the process wait until the launch is over before they start. No delay by default
+(scenarios time their expectations on an instant robot); studies set one.
 """
 
 from __future__ import annotations
 
 import random
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Literal
@@ -37,6 +46,15 @@ MOTION_SECONDS: dict[str, float] = {
 
 DEFAULT_MOTION_S = 2.0
 DEFAULT_MEDIA_S = 30.0
+DEFAULT_WPM = 150.0
+LAUNCHED_KEPT = 16
+"""Launched processes remembered (an activity paused and resumed is not launched again)."""
+
+
+def speech_seconds(text: str, wpm: float = DEFAULT_WPM) -> float:
+    """How long saying ``text`` takes at ``wpm`` words a minute (also what a simulated
+    user expects, to answer when the robot has finished speaking)."""
+    return 0.3 + 60.0 * len(text.split()) / wpm
 
 
 @dataclass
@@ -48,11 +66,25 @@ class _Running:
 class SimRobot:
     """An in-process robot on the caller's clock (real or virtual)."""
 
-    def __init__(self, rng_seed: int = 0, speaking_rate_wpm: float = 150.0) -> None:
+    def __init__(
+        self,
+        rng_seed: int = 0,
+        speaking_rate_wpm: float = DEFAULT_WPM,
+        launch_delay_s: tuple[float, float] = (0.0, 0.0),
+    ) -> None:
         if speaking_rate_wpm <= 0:
             raise ValueError("speaking_rate_wpm must be positive")
+        low, high = launch_delay_s
+        if not 0.0 <= low <= high:
+            raise ValueError("launch_delay_s must be (min, max) with 0 <= min <= max")
         self.rng = random.Random(rng_seed)
         self.speaking_rate_wpm = speaking_rate_wpm
+        self.launch_delay_s = (float(low), float(high))
+        """Seconds (drawn uniformly in [min, max]) to launch an activity's process."""
+        self.process_of: Callable[[RobotCommand], Hashable | None] | None = None
+        """Which activity process sends ``command`` (None: the robot's own, never launched)."""
+        self._ready_at: dict[Hashable, datetime] = {}
+        self.launches = 0
         self._running: dict[str, _Running] = {}
         self._out: list[tuple[datetime, int, RobotFeedback]] = []
         self._seq = 0
@@ -95,14 +127,33 @@ class SimRobot:
             return _seconds(args.get("duration_s"), base)
         return 0.0
 
+    def _launched(self, command: RobotCommand, now: datetime) -> datetime:
+        """When ``command``'s process is ready: now, or when its launch is over."""
+        low, high = self.launch_delay_s
+        if high <= 0.0 or self.process_of is None:
+            return now
+        process = self.process_of(command)
+        if process is None:
+            return now
+        ready = self._ready_at.get(process)
+        if ready is None:
+            self.launches += 1
+            delay = low if high <= low else self.rng.uniform(low, high)
+            ready = now + timedelta(seconds=delay)
+            self._ready_at[process] = ready
+            while len(self._ready_at) > LAUNCHED_KEPT:
+                del self._ready_at[next(iter(self._ready_at))]
+        return max(now, ready)
+
     def send(self, command: RobotCommand, now: datetime) -> None:
         self.log.append((now, command))
         fault = self._fault(command.channel)
         if fault == "hang":
             return
-        self._emit(now, command.id, "started")
+        begins = self._launched(command, now)
+        self._emit(begins, command.id, "started")
         if fault == "fail":
-            self._emit(now, command.id, "failed", "simulated fault")
+            self._emit(begins, command.id, "failed", "simulated fault")
             return
         if fault == "stall":
             return
@@ -110,11 +161,13 @@ class SimRobot:
             self.screen = {"action": command.action, **command.args}
         elif command.channel == "led":
             self.leds = {"action": command.action, **command.args}
-        ends = now + timedelta(seconds=self.duration(command))
+        ends = begins + timedelta(seconds=self.duration(command))
         self._running[command.id] = _Running(command, ends)
 
     def interrupt(self, command_id: str, now: datetime) -> None:
         if self._running.pop(command_id, None) is not None:
+            # a command still waiting for its launch never reports that it started
+            self._out = [i for i in self._out if i[2].id != command_id or i[0] <= now]
             self._emit(now, command_id, "interrupted")
 
     def poll(self, now: datetime) -> list[RobotFeedback]:

@@ -41,10 +41,11 @@ from typing import Any, Literal
 
 from dms.config import Settings
 from dms.expression import CommandHandle
-from dms.messages import RobotCommand
+from dms.messages import Decision, RobotCommand
 from sim.harness import Simulation, TimedDecision
 from sim.persona import Persona, Preferences, load_persona, shipped_personas
-from sim.user import SimulatedUser
+from sim.population import INITIATIVE_ANSWER, paper_participant
+from sim.user import SimulatedUser, UserStats
 
 NOT_COUNTED = frozenset({"menu", "notification", "wait", "sleep", "instructions"})
 """Activities that are not what the participant came for (the paper counts entertainment)."""
@@ -53,6 +54,13 @@ ACTIVITY_SOURCE = "activity:"
 """The prefix of the arbiter's ``source`` for an activity's commands."""
 GAP_S = 120.0
 """Virtual seconds between two participants."""
+SURVEY_S = 180.0
+"""The seed's usability survey at the end of each 30-minute session ("around 3 min")."""
+LAUNCH_DELAY_S = (3.0, 3.8)
+"""The simulated Mini's time to launch an activity's process (uniform, seconds). The
+seed's loading time, 3.78 s (SD 0.25), is this plus the feedback round of up to one
+tick (0.5 s), so the launch is set a little under it."""
+Population = Literal["paper", "personas"]
 
 ProactivityLevel = Literal["low", "moderate", "high"]
 
@@ -61,6 +69,9 @@ ProactivityLevel = Literal["low", "moderate", "high"]
 class SessionMetrics:
     """Table 4's figures for one session."""
 
+    participant: str = ""
+    visit: int = 1
+    """Which time this participant comes (``--repeat``)."""
     questions: int = 0
     activities: int = 0
     load_times: list[float] = field(default_factory=list)
@@ -73,6 +84,10 @@ class SessionMetrics:
     misrecognized: int = 0
     unanswered: int = 0
     other_failures: int = 0
+    robot_choice_cancels: int = 0
+    """Cancels (by the participant) of activities the robot chose."""
+    kendall_tau: float | None = None
+    """After the session: the daemon's predicted ranking against the participant's true one."""
 
 
 class SessionObserver:
@@ -120,6 +135,8 @@ class SessionObserver:
                 self._last_end = t
             if d.action == "cancel" and d.reason in USER_CANCEL_REASONS:
                 m.cancels += 1
+                if d.chosen_by == "robot":
+                    m.robot_choice_cancels += 1
             if d.action == "fail":
                 m.other_failures += 1
 
@@ -157,7 +174,8 @@ def command_handle(sim: Simulation, command: RobotCommand) -> CommandHandle | No
 
 
 def participant(base: Persona, index: int, rng: random.Random, level: ProactivityLevel) -> Persona:
-    """A participant: ``base`` with jittered preferences and habits and the study's proactivity."""
+    """A participant from a shipped persona: ``base`` with jittered preferences and habits
+    and the study's proactivity (``--population personas``)."""
     prefs = {
         name: min(1.0, max(0.0, value + rng.gauss(0.0, 0.15)))
         for name, value in base.preferences.model_dump().items()
@@ -171,10 +189,57 @@ def participant(base: Persona, index: int, rng: random.Random, level: Proactivit
             "user_id": f"p{index:02d}",
             "preferences": Preferences(**prefs),
             "proactivity": level,
+            "decline_menu_rate": None,
+            "answers": {"how often should i start": INITIATIVE_ANSWER[level]},
             "speech": speech,
-            "features": {**base.features, "proactivity": level},
+            "features": {**base.features},
         }
     )
+
+
+def participants(
+    count: int, seed: int, level: ProactivityLevel, population: Population = "paper"
+) -> list[Persona]:
+    """The study's participants, drawn from their own generator: the same seed gives the
+    same people whatever design runs (``dms sim compare`` pairs sessions on them)."""
+    rng = random.Random(f"participants/{seed}")
+    if population == "paper":
+        return [paper_participant(index, rng, level) for index in range(1, count + 1)]
+    bases = [load_persona(name) for name in shipped_personas() if name != "demo"]
+    return [participant(rng.choice(bases), index, rng, level) for index in range(1, count + 1)]
+
+
+PAPER: dict[str, tuple[float, float]] = {
+    "questions_per_session": (3.78, 0.56),
+    "activities_per_session": (4.76, 0.42),
+    "activity_load_time_s": (3.78, 0.25),
+    "activity_time_s": (255.91, 62.89),
+    "change_time_s": (43.12, 3.21),
+    "robot_decisions_per_session": (2.30, 0.26),
+    "user_selections_per_session": (2.46, 0.18),
+    "cancels_per_session": (0.53, 0.09),
+}
+"""The seed's Table 4: mean (SD) per session of the eight metrics."""
+PAPER_FAILURES: dict[str, int] = {
+    "activity_not_loaded": 2,
+    "speech_recognition_errors": 5,
+    "user_not_answering": 0,
+    "other": 1,
+}
+"""The seed's Table 4 failures: totals over its 30 sessions."""
+METRICS: tuple[str, ...] = tuple(PAPER)
+
+
+@dataclass
+class DecisionRow:
+    """One decision of the study, for ``decisions.csv``."""
+
+    session: int
+    participant: str
+    visit: int
+    t: float
+    """Seconds since the participant sat down."""
+    decision: Decision
 
 
 @dataclass
@@ -184,6 +249,25 @@ class StudyResult:
     minutes: float
     proactivity: str
     seed: int
+    repeat: int = 1
+    decisions: list[DecisionRow] = field(default_factory=list)
+
+    def metric_values(self) -> dict[str, list[float | None]]:
+        """Per metric, one value per session (None where the session has none: no
+        activity ended, so no execution time)."""
+        return {key: [session_value(s, key) for s in self.sessions] for key in METRICS}
+
+    def adaptation(self) -> dict[str, list[float]]:
+        """Per visit (1..repeat), the mean over participants of Kendall's tau (predicted
+        against true ranking, after the visit) and of cancels of robot-chosen activities."""
+        taus: list[float] = []
+        cancels: list[float] = []
+        for visit in range(1, self.repeat + 1):
+            rows = [s for s in self.sessions if s.visit == visit]
+            values = [s.kendall_tau for s in rows if s.kendall_tau is not None]
+            taus.append(round(statistics.fmean(values), 3) if values else 0.0)
+            cancels.append(round(_mean([float(s.robot_choice_cancels) for s in rows]), 3))
+        return {"kendall_tau_by_session": taus, "robot_choice_cancels_by_session": cancels}
 
     def to_json(self) -> dict[str, Any]:
         """CONTRACT.md's keys (per-session means), plus their standard deviations."""
@@ -199,27 +283,58 @@ class StudyResult:
         out["minutes"] = self.minutes
         out["proactivity"] = self.proactivity
         out["seed"] = self.seed
+        out["repeat"] = self.repeat
+        out["adaptation"] = self.adaptation()
         return out
 
     def table(self) -> str:
-        """The seed's Table 4 for this simulated run."""
+        """The seed's Table 4 for this simulated run, beside the paper's."""
         rows = _rows(self.sessions)
         fails = _failures(self.sessions)
         lines = [
             f"Table 4 (simulated): {len(self.sessions)} sessions of {self.minutes:g} min, "
             f"proactivity {self.proactivity}, seed {self.seed}",
-            f"{'Metric type':<15} {'Metric':<38} Values",
-            "-" * 70,
+            f"{'Metric type':<15} {'Metric':<38} {'Simulated':<16} Paper",
+            "-" * 84,
         ]
         for key, label, kind in _TABLE:
             if kind == "failure":
-                value = str(fails[key])
+                value, paper = str(fails[key]), str(PAPER_FAILURES[key])
             else:
                 mean, sd = rows[key]
                 value = f"{mean:.2f} ({sd:.2f})"
-            lines.append(f"{kind_label(kind):<15} {label:<38} {value}")
+                paper = "{:.2f} ({:.2f})".format(*PAPER[key])
+            lines.append(f"{kind_label(kind):<15} {label:<38} {value:<16} {paper}")
+        if self.repeat > 1:
+            adaptation = self.adaptation()
+            lines.append(
+                "Kendall tau by visit: "
+                + " ".join(f"{v:.2f}" for v in adaptation["kendall_tau_by_session"])
+            )
+            lines.append(
+                "robot-chosen cancels by visit: "
+                + " ".join(f"{v:.2f}" for v in adaptation["robot_choice_cancels_by_session"])
+            )
         lines.append(f"({self.wall_s:.1f} s wall time)")
         return "\n".join(lines)
+
+
+def session_value(s: SessionMetrics, key: str) -> float | None:
+    """One session's value of a Table 4 metric (None: the session has nothing to average)."""
+    if key == "activity_load_time_s":
+        return _mean(s.load_times) if s.load_times else None
+    if key == "activity_time_s":
+        return _mean(s.activity_times) if s.activity_times else None
+    if key == "change_time_s":
+        return _mean(s.change_times) if s.change_times else None
+    counts = {
+        "questions_per_session": s.questions,
+        "activities_per_session": s.activities,
+        "robot_decisions_per_session": s.robot_decisions,
+        "user_selections_per_session": s.user_selections,
+        "cancels_per_session": s.cancels,
+    }
+    return float(counts[key])
 
 
 def kind_label(kind: str) -> str:
@@ -240,6 +355,7 @@ _TABLE = (
     ("user_not_answering", "User not answering", "failure"),
     ("other", "Other DMS errors", "failure"),
 )
+LABELS: dict[str, str] = {key: label for key, label, _kind in _TABLE}
 
 
 def _mean(values: list[float]) -> float:
@@ -253,16 +369,11 @@ def _stats(values: list[float]) -> tuple[float, float]:
 
 
 def _rows(sessions: list[SessionMetrics]) -> dict[str, tuple[float, float]]:
-    return {
-        "questions_per_session": _stats([float(s.questions) for s in sessions]),
-        "activities_per_session": _stats([float(s.activities) for s in sessions]),
-        "activity_load_time_s": _stats([_mean(s.load_times) for s in sessions if s.load_times]),
-        "activity_time_s": _stats([_mean(s.activity_times) for s in sessions if s.activity_times]),
-        "change_time_s": _stats([_mean(s.change_times) for s in sessions if s.change_times]),
-        "robot_decisions_per_session": _stats([float(s.robot_decisions) for s in sessions]),
-        "user_selections_per_session": _stats([float(s.user_selections) for s in sessions]),
-        "cancels_per_session": _stats([float(s.cancels) for s in sessions]),
-    }
+    out: dict[str, tuple[float, float]] = {}
+    for key in METRICS:
+        values = [v for s in sessions if (v := session_value(s, key)) is not None]
+        out[key] = _stats(values)
+    return out
 
 
 def _failures(sessions: list[SessionMetrics]) -> dict[str, int]:
@@ -274,6 +385,45 @@ def _failures(sessions: list[SessionMetrics]) -> dict[str, int]:
     }
 
 
+def kendall_tau(predicted: list[str], truth: list[str]) -> float:
+    """Kendall's tau between two rankings of the same activities (scipy.stats.kendalltau
+    on each activity's position)."""
+    from scipy.stats import kendalltau
+
+    names = [name for name in truth if name in predicted]
+    result = kendalltau([predicted.index(n) for n in names], list(range(len(names))))
+    value = float(result.statistic)
+    return 0.0 if value != value else value  # nan (constant ranking): no agreement
+
+
+def predicted_ranking(sim: Simulation, user_id: str) -> list[str] | None:
+    """The daemon's ranking of the entertainment activities for ``user_id`` now (the
+    chooser's expected liking), or None without memory."""
+    store, chooser = sim.stack.store, sim.stack.chooser
+    if store is None or chooser is None:
+        return None
+    return chooser.ranking(store.get(user_id), random.Random(0))
+
+
+def study_settings(
+    config: Settings | None = None, config_data: dict[str, Any] | None = None
+) -> Settings:
+    """The study's settings: the seed's protocol (:data:`PROTOCOL`) for every controller
+    setting the configuration does not give itself (``config_data``: the TOML as read)."""
+    settings = config or Settings()
+    given = (config_data or {}).get("controller") or {}
+    updates = {key: value for key, value in PROTOCOL.items() if key not in given}
+    return settings.model_copy(
+        update={"controller": settings.controller.model_copy(update=updates)}
+    )
+
+
+PROTOCOL: dict[str, Any] = {"session_questions": 4, "question_every": 0}
+"""The seed's session protocol: 4-5 general questions after Start, then activities only
+(no more questions between them). Applied by the study as configuration, the way an
+experimenter configures the robot; a ``--config`` that sets them wins."""
+
+
 def run_study(
     sessions: int = 30,
     minutes: float = 30.0,
@@ -281,36 +431,84 @@ def run_study(
     seed: int = 0,
     settings: Settings | None = None,
     progress: Callable[[int], None] | None = None,
+    *,
+    repeat: int = 1,
+    survey_s: float = SURVEY_S,
+    launch_delay_s: tuple[float, float] = LAUNCH_DELAY_S,
+    population: Population = "paper",
+    record_decisions: bool = False,
 ) -> StudyResult:
-    """Run the study on the virtual clock; ``progress`` is told of each finished session."""
+    """Run the study on the virtual clock: ``sessions`` participants, each coming
+    ``repeat`` times (all first visits, then all second visits...), each visit
+    ``minutes`` long including the ``survey_s`` survey at the end.
+
+    ``settings`` is used as given (see :func:`study_settings` for the seed's protocol).
+    ``progress`` is told the number of sessions done after each.
+    """
     wall = time.perf_counter()
     rng = random.Random(seed)
-    bases = [load_persona(name) for name in shipped_personas() if name != "demo"]
+    people = participants(sessions, seed, proactivity, population)
+    users = {p.id: SimulatedUser(p, random.Random(rng.random())) for p in people}
     results: list[SessionMetrics] = []
+    rows: list[DecisionRow] = []
     start = datetime(2026, 11, 23, 9, 0, tzinfo=UTC)
-    with Simulation(settings, seed=seed, start=start) as sim:
+    with Simulation(settings, seed=seed, start=start, launch_delay_s=launch_delay_s) as sim:
         sim.idle_step_s = 10.0  # between participants nobody is there (see sim.harness)
         observer = SessionObserver()
-        sim.decision_listeners.append(lambda timed: observer.on_decision(timed))
+        current: dict[str, Any] = {"session": 0, "participant": "", "visit": 0, "t0": 0.0}
+
+        def on_decision(timed: TimedDecision) -> None:
+            observer.on_decision(timed)
+            if record_decisions and current["session"]:
+                rows.append(
+                    DecisionRow(
+                        current["session"],
+                        current["participant"],
+                        current["visit"],
+                        round(timed.t - current["t0"], 3),
+                        timed.decision,
+                    )
+                )
+
+        sim.decision_listeners.append(on_decision)
         sim.command_listeners.append(
             lambda cmd, now: observer.on_command(command_handle(sim, cmd), sim.t)
         )
         sim.tick_listeners.append(lambda _record: observer.on_tick(sim.t))
-        for index in range(1, sessions + 1):
-            person = participant(rng.choice(bases), index, rng, proactivity)
-            user = SimulatedUser(person, random.Random(rng.random()))
-            observer = SessionObserver()
-            unanswered_before = sim.controller.counters.unanswered
-            sim.seat(user)
-            sim.run_for(minutes * 60.0)
-            sim.unseat()
-            sim.run_for(1.0)  # the departure is seen and the session closed
-            metrics = observer.metrics
-            metrics.misrecognized = user.stats.misrecognized
-            metrics.unanswered = sim.controller.counters.unanswered - unanswered_before
-            observer = SessionObserver()  # the gap between participants is not measured
-            sim.run_for(GAP_S)
-            results.append(metrics)
-            if progress is not None:
-                progress(index)
-    return StudyResult(results, time.perf_counter() - wall, minutes, proactivity, seed)
+        number = 0
+        for visit in range(1, repeat + 1):
+            for person in people:
+                number += 1
+                user = users[person.id]
+                user.stats = UserStats()
+                observer = SessionObserver()
+                current.update(session=number, participant=person.id, visit=visit, t0=sim.t)
+                unanswered_before = sim.controller.counters.unanswered
+                began = sim.t
+                sim.seat(user)
+                _run_session(sim, minutes * 60.0, survey_s)
+                sim.unseat()
+                sim.run_for(1.0)  # the departure is seen and the session closed
+                metrics = observer.metrics
+                metrics.participant, metrics.visit = person.id, visit
+                metrics.misrecognized = user.stats.misrecognized
+                metrics.unanswered = sim.controller.counters.unanswered - unanswered_before
+                predicted = predicted_ranking(sim, person.id)
+                if predicted is not None:
+                    metrics.kendall_tau = round(kendall_tau(predicted, person.favourites()), 4)
+                observer = SessionObserver()  # the survey and the gap are not measured
+                current["session"] = 0
+                sim.run_until(began + minutes * 60.0 + GAP_S)
+                results.append(metrics)
+                if progress is not None:
+                    progress(number)
+    return StudyResult(
+        results, time.perf_counter() - wall, minutes, proactivity, seed, repeat, rows
+    )
+
+
+def _run_session(sim: Simulation, length_s: float, survey_s: float) -> None:
+    """The participant's time with the robot: the session less the survey at its end.
+    At the survey the participant gets up, as in the seed, whatever runs (the activity
+    under way ends ``user_left``: counted as started, not as a cancel)."""
+    sim.run_for(max(0.0, length_s - survey_s))

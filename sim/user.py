@@ -34,6 +34,8 @@ Output = tuple[str, BaseModel]
 CONFIRM_WORDS = frozenset({"stop", "continue", "yes", "no"})
 FEEDBACK_WORDS = ("1", "2", "3", "4", "5")
 REQUEST_PHRASES = ("let's do the {}", "I would like the {}", "can we do the {}, please?")
+DECLINE_PHRASE = "you choose"
+"""What a user says or taps to leave the menu's choice to the robot."""
 
 
 @dataclass
@@ -50,6 +52,9 @@ class UserStats:
     touches: int = 0
     requests_by_name: int = 0
     menu_choices: int = 0
+    menu_declines: int = 0
+    rhetorical: int = 0
+    """Spoken questions inside an activity, with no choices, not answered (a joke's setup)."""
 
 
 @dataclass
@@ -59,6 +64,8 @@ class _Question:
     choices: tuple[str, ...] = ()
     answered: bool = False
     retried: bool = False
+    not_before: datetime | None = None
+    """The user is still looking at the choices (a menu, a rating) until then."""
 
 
 @dataclass(order=True)
@@ -164,6 +171,7 @@ class SimulatedUser:
                     # The screen shows the choices of what was just said (the channels
                     # are served apart, so they need not arrive at the same instant).
                     question.choices = choices
+                    self._consider(question)
                     return
                 text = str(command.args.get("text", command.args.get("title", "")))
                 self._ask(text, choices, now)
@@ -173,6 +181,18 @@ class SimulatedUser:
         self.stats.questions_heard += 1
         delay = _draw(self.rng, self.persona.speech.answer_delay_s)
         self._schedule(now + timedelta(seconds=delay), lambda t: self._answer(question, t))
+        self._consider(question)
+
+    def _consider(self, question: _Question) -> None:
+        """Choices that take longer than an answer: a menu to look through, a rating."""
+        speech = self.persona.speech
+        span = None
+        if question.choices and set(question.choices) <= set(FEEDBACK_WORDS):
+            span = speech.rating_delay_s
+        elif any(_choice_activity(choice) is not None for choice in question.choices):
+            span = speech.menu_delay_s
+        if span is not None:
+            question.not_before = question.asked + timedelta(seconds=_draw(self.rng, span))
 
     def on_decision(self, decision: Decision, now: datetime) -> None:
         """Follow what the robot decided: which activity runs now."""
@@ -237,6 +257,17 @@ class SimulatedUser:
     def _answer(self, question: _Question, now: datetime) -> list[Output]:
         if question is not self._question or question.answered:
             return []
+        if question.not_before is not None and now < question.not_before:
+            when = question.not_before
+            self._schedule(when, lambda t: self._answer(question, t))
+            return []
+        if not question.choices and self.activity in ENTERTAINMENT_ACTIVITIES:
+            # A spoken question with nothing to choose inside an entertainment activity
+            # (a joke's setup, "do you know any other sayings?"): the robot goes on by
+            # itself; those activities take answers with choices on the screen.
+            question.answered = True
+            self.stats.rhetorical += 1
+            return []
         speech = self.persona.speech
         if not question.retried and self.rng.random() < speech.no_answer_rate:
             question.answered = True
@@ -274,6 +305,10 @@ class SimulatedUser:
 
     def _choose_answer(self, question: _Question) -> str:
         choices = question.choices
+        asked = question.text.lower()
+        for phrase, answer in self.persona.answers.items():
+            if phrase.lower() in asked:
+                return answer
         lowered = {choice.lower() for choice in choices}
         if lowered & {"stop", "continue"} and lowered <= CONFIRM_WORDS:
             stop = self._wants_stop is not None and self._wants_stop == self.activity
@@ -294,13 +329,18 @@ class SimulatedUser:
         return str(score)
 
     def _pick(self, choices: Sequence[str]) -> str:
-        """A menu or a quiz: the best-liked activity among them, else any choice."""
+        """A menu: the best-liked activity among them, or "you choose" (as often as the
+        persona leaves the initiative to the robot); else (a quiz) any choice."""
         scored = [
             (self.persona.liking(name) + self.rng.uniform(0.0, 0.25), choice)
             for choice in choices
             if (name := _choice_activity(choice)) is not None
         ]
         if scored:
+            decline = self.persona.declines_menu()
+            if decline > 0.0 and self.rng.random() < decline:
+                self.stats.menu_declines += 1
+                return DECLINE_PHRASE
             return max(scored)[1]
         return self.rng.choice(list(choices))
 
