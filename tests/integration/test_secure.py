@@ -18,6 +18,7 @@ import subprocess
 import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
 
@@ -132,11 +133,17 @@ def _put(session: zenoh.Session, key: str, payload: dict[str, Any]) -> None:
     )
 
 
-def _get(session: zenoh.Session, key: str, timeout: float = 5.0) -> list[tuple[bool, Any]]:
+def _get(
+    session: zenoh.Session,
+    key: str,
+    payload: dict[str, Any] | None = None,
+    timeout: float = 5.0,
+) -> list[tuple[bool, Any]]:
     """Every reply to ``get`` (it returns once the query is complete: all answered, or
     the timeout for a query that reached a queryable but was never answered)."""
     out: list[tuple[bool, Any]] = []
-    for reply in session.get(f"{ROBOT}/{key}", timeout=timeout):
+    data = json.dumps(payload).encode() if payload is not None else None
+    for reply in session.get(f"{ROBOT}/{key}", payload=data, timeout=timeout):
         sample = reply.ok if reply.ok is not None else reply.err
         out.append((reply.ok is not None, json.loads(sample.payload.to_bytes())))
     return out
@@ -240,12 +247,18 @@ def test_an_app_cannot_read_profiles_or_agendas_but_admin_can(deployment: Deploy
         control = _get(app, "dms/state")
         assert len(control) == 1 and control[0][0] and control[0][1]["robot"] == "mini"
     admin = deployment.session("admin")
+    at = (datetime.now(UTC) + timedelta(days=1)).isoformat()
+    reminder = {"op": "add", "kind": "reminder", "at": at}
+    app = deployment.session("app", rogue=True)
+    assert _get(app, "agenda/alice", {**reminder, "text": "from the app"}) == []
+    [(ok, added)] = _get(admin, "agenda/alice", {**reminder, "text": "from admin"})
+    assert ok, added
+    [(ok, agenda)] = _get(admin, "agenda/alice")
+    assert ok and [item["text"] for item in agenda["items"]] == ["from admin"]
     [(ok, profile)] = _get(admin, "users/alice")
     assert ok and json.dumps(profile).count("Alice") >= 1
     [(ok, listing)] = _get(admin, "users/*")
     assert ok and "alice" in listing["users"]
-    [(ok, agenda)] = _get(admin, "agenda/alice")
-    assert ok, agenda
 
 
 def test_an_app_watches_and_requests_the_robot_gets_commands(deployment: Deployment) -> None:
