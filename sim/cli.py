@@ -6,13 +6,18 @@ import json
 import signal
 import sys
 import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from types import FrameType
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import typer
 
 from sim.errors import ExpectationFailed, SimError
+
+if TYPE_CHECKING:
+    from dms.config import Settings
 
 app = typer.Typer(no_args_is_help=True)
 
@@ -67,27 +72,140 @@ def run_command(
         )
 
 
+def _design(config: Path | None, rules: Path | None) -> tuple[Settings, dict[str, Any]]:
+    """The settings of ``--config`` (as ``dms run --config`` reads them) with ``--rules``
+    in place of its rule files, never its database (a simulation has its own), and the
+    TOML as read (to tell which settings the file gives)."""
+    from dms.config import Settings, load_config, read_toml
+
+    settings = load_config(config) if config is not None else Settings()
+    raw = read_toml(config) if config is not None else {}
+    update: dict[str, Any] = {"db": None}
+    if rules is not None:
+        if not rules.is_file():
+            raise SimError(f"--rules: {rules} is not a file")
+        update["rules"] = settings.rules.model_copy(update={"files": [rules]})
+    return settings.model_copy(update=update), raw
+
+
+@contextmanager
+def _progress(total: int, what: str) -> Iterator[Callable[[int], None]]:
+    """A progress bar with the time left on stderr (stdout stays clean for --json);
+    yields the callback to tell it how many are done."""
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
+
+    columns = (
+        "{task.description}",
+        BarColumn(),
+        MofNCompleteColumn(),
+        "time left",
+        TimeRemainingColumn(),
+    )
+    with Progress(*columns, console=Console(stderr=True), transient=False) as bar:
+        task = bar.add_task(what, total=total)
+        yield lambda done: bar.update(task, completed=done)
+
+
+ConfigOption = Annotated[
+    Path | None, typer.Option("--config", help="A dms TOML configuration (as dms run --config).")
+]
+RulesOption = Annotated[
+    Path | None, typer.Option("--rules", help="A DMSL rules file, in place of the config's.")
+]
+
+
 @app.command("study")
 def study_command(
     sessions: Annotated[int, typer.Option(min=1, max=10000, help="Participants.")] = 30,
     minutes: Annotated[float, typer.Option(min=0.5, max=24 * 60, help="Session length.")] = 30.0,
     proactivity: Annotated[
-        str, typer.Option(help="Proactivity of every participant: low, moderate or high.")
+        str, typer.Option(help="True proactivity of every participant: low, moderate or high.")
     ] = "moderate",
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+    repeat: Annotated[
+        int, typer.Option(min=1, max=100, help="Visits of each participant (adaptation).")
+    ] = 1,
+    population: Annotated[
+        str, typer.Option(help="paper (adults like the seed's) or personas (the shipped ones).")
+    ] = "paper",
+    config: ConfigOption = None,
+    rules: RulesOption = None,
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", help="Folder for sessions.csv, decisions.csv and table4.png."),
+    ] = None,
     as_json: Annotated[
         bool, typer.Option("--json", help="Print JSON (CONTRACT.md's keys).")
     ] = False,
 ) -> None:
     """The seed's first experiment with simulated participants; prints its Table 4."""
-    from sim.study import run_study
+    from sim.study import run_study, study_settings
 
     level = _proactivity(proactivity)
-    result = run_study(sessions, minutes, level, seed)
+    if population not in ("paper", "personas"):
+        raise SimError(f"--population: {population!r} is not paper or personas")
+    settings, raw = _design(config, rules)
+    with _progress(sessions * repeat, "sessions") as told:
+        result = run_study(
+            sessions,
+            minutes,
+            level,
+            seed,
+            study_settings(settings, raw),
+            told,
+            repeat=repeat,
+            population="paper" if population == "paper" else "personas",
+            record_decisions=out is not None,
+        )
+    if out is not None:
+        from sim.export import write_all
+
+        for path in write_all(out, result.sessions, result.decisions):
+            print(f"dms: wrote {path}", file=sys.stderr)
     if as_json:
         _print_json(result.to_json())
     else:
         typer.echo(result.table())
+
+
+@app.command("compare")
+def compare_command(
+    design_a: Annotated[Path, typer.Argument(help="Design A: a dms TOML configuration.")],
+    design_b: Annotated[Path, typer.Argument(help="Design B: a dms TOML configuration.")],
+    rules_a: Annotated[Path | None, typer.Option("--rules-a", help="Rules file of A.")] = None,
+    rules_b: Annotated[Path | None, typer.Option("--rules-b", help="Rules file of B.")] = None,
+    sessions: Annotated[int, typer.Option(min=2, max=10000, help="Participants.")] = 30,
+    minutes: Annotated[float, typer.Option(min=0.5, max=24 * 60, help="Session length.")] = 30.0,
+    seed: Annotated[int, typer.Option(help="Random seed (the same for both).")] = 0,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+) -> None:
+    """Run two designs on the same participants; per metric, both means and the paired
+    difference (B - A) with a bootstrap 95 % interval."""
+    from sim.compare import compare, table, to_json
+    from sim.study import study_settings
+
+    settings_a, raw_a = _design(design_a, rules_a)
+    settings_b, raw_b = _design(design_b, rules_b)
+    with _progress(2 * sessions, "sessions (A, then B)") as told:
+        done = {"A": 0, "B": 0}
+
+        def progress(label: str, count: int) -> None:
+            done[label] = count
+            told(done["A"] + done["B"])
+
+        result = compare(
+            study_settings(settings_a, raw_a),
+            study_settings(settings_b, raw_b),
+            sessions,
+            minutes,
+            seed,
+            progress=progress,
+        )
+    if as_json:
+        _print_json(to_json(result))
+    else:
+        typer.echo(table(result))
 
 
 def _proactivity(value: str) -> Literal["low", "moderate", "high"]:
@@ -105,7 +223,12 @@ def longterm_command(
     days: Annotated[int, typer.Option(min=1, max=3660, help="Days of robot life.")] = 30,
     users: Annotated[int, typer.Option(min=0, max=100, help="Simulated users visiting.")] = 3,
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
-    out: Annotated[Path, typer.Option(help="Folder for the PNG plots.")] = Path("longterm"),
+    out: Annotated[
+        Path,
+        typer.Option(help="Folder for the plots, sessions.csv, decisions.csv and table4.png."),
+    ] = Path("longterm"),
+    config: ConfigOption = None,
+    rules: RulesOption = None,
     as_json: Annotated[
         bool, typer.Option("--json", help="Print JSON (CONTRACT.md's keys).")
     ] = False,
@@ -113,16 +236,9 @@ def longterm_command(
     """Weeks of robot life with users visiting; plots drives, wellbeing and activities."""
     from sim.longterm import run_longterm
 
-    width = 30
-
-    def progress(day: int) -> None:
-        done = int(width * day / days)
-        sys.stderr.write(f"\r[{'#' * done}{'.' * (width - done)}] day {day}/{days}")
-        if day == days:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
-
-    result = run_longterm(days, users, seed, out, progress=progress)
+    settings = _design(config, rules)[0] if config is not None or rules is not None else None
+    with _progress(days, "days") as told:
+        result = run_longterm(days, users, seed, out, settings=settings, progress=told)
     if as_json:
         _print_json(result.to_json())
         return

@@ -30,11 +30,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from dms.config import Settings
+from dms.messages import RobotCommand
 from sim.persona import WEEKDAYS, Persona, load_persona, shipped_personas
+from sim.study import DecisionRow, SessionMetrics, SessionObserver, command_handle
 from sim.user import SimulatedUser
 
 if TYPE_CHECKING:
     from dms.controller import TickRecord
+    from sim.harness import Simulation, TimedDecision
 
 IDLE_STEP_S = 300.0
 SAMPLE_EVERY_S = 300.0
@@ -92,6 +95,10 @@ class LongtermResult:
     presence: list[tuple[int, float, float]] = field(repr=False, default_factory=list)
     """(user index, arrival, departure) of every visit, in seconds from the start."""
     plots: list[Path] = field(default_factory=list)
+    sessions: list[SessionMetrics] = field(default_factory=list)
+    """Table 4's metrics of each visit (``sessions.csv``)."""
+    decision_rows: list[DecisionRow] = field(default_factory=list)
+    """The decisions taken during visits (``decisions.csv``)."""
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -214,10 +221,11 @@ def run_longterm(
                     first = persona.visits[0].at
                     minute = first.hour * 60 + first.minute + 10
                     daily_reminder(sim.stack.agenda, user_id, minute // 60 % 24, minute % 60, START)
+        visiting = _Visits(sim)
         for visit in visits:
             person = people[visit.user]
-            sim.at(visit.start_s, lambda p=person: sim.seat(p))  # type: ignore[misc]
-            sim.at(visit.end_s, sim.unseat)
+            sim.at(visit.start_s, lambda p=person: visiting.seat(p))  # type: ignore[misc]
+            sim.at(visit.end_s, visiting.unseat)
         for day in range(1, days + 1):
             sim.run_until(day * 86400.0)
             if progress is not None:
@@ -243,9 +251,68 @@ def run_longterm(
         samples=tracker.samples,
         spans=tracker.spans,
         presence=[(v.user, v.start_s, v.end_s) for v in visits],
+        sessions=visiting.sessions,
+        decision_rows=visiting.rows,
     )
     if out is not None:
+        from sim.export import write_all
         from sim.plots import write_plots
 
         result.plots = write_plots(result, out)
+        result.plots += write_all(out, result.sessions, result.decision_rows)
     return result
+
+
+class _Visits:
+    """Seats and unseats the visitors, measuring each visit as a study session."""
+
+    def __init__(self, sim: Simulation) -> None:
+        self.sim = sim
+        self.sessions: list[SessionMetrics] = []
+        self.rows: list[DecisionRow] = []
+        self.visits: dict[str, int] = {}
+        self.observer: SessionObserver | None = None
+        self.user: SimulatedUser | None = None
+        self.t0 = 0.0
+        self.misrecognized = 0
+        sim.decision_listeners.append(self._on_decision)
+        sim.command_listeners.append(self._on_command)
+        sim.tick_listeners.append(lambda _record: self._on_tick())
+
+    def _on_decision(self, timed: TimedDecision) -> None:
+        if self.observer is None or self.user is None:
+            return
+        self.observer.on_decision(timed)
+        visit = self.visits[self.user.user_id]
+        number = len(self.sessions) + 1
+        row = DecisionRow(number, self.user.user_id, visit, timed.t - self.t0, timed.decision)
+        self.rows.append(row)
+
+    def _on_command(self, command: RobotCommand, _now: datetime) -> None:
+        if self.observer is not None:
+            self.observer.on_command(command_handle(self.sim, command), self.sim.t)
+
+    def _on_tick(self) -> None:
+        if self.observer is not None:
+            self.observer.on_tick(self.sim.t)
+
+    def seat(self, user: SimulatedUser) -> None:
+        self._finish()
+        self.user, self.observer, self.t0 = user, SessionObserver(), self.sim.t
+        self.visits[user.user_id] = self.visits.get(user.user_id, 0) + 1
+        self.misrecognized = user.stats.misrecognized
+        self.sim.seat(user)
+
+    def unseat(self) -> None:
+        self.sim.unseat()
+        self._finish()
+
+    def _finish(self) -> None:
+        user, observer = self.user, self.observer
+        if user is None or observer is None:
+            return
+        metrics = observer.metrics
+        metrics.participant, metrics.visit = user.user_id, self.visits[user.user_id]
+        metrics.misrecognized = user.stats.misrecognized - self.misrecognized
+        self.sessions.append(metrics)
+        self.user = self.observer = None
