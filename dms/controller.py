@@ -54,14 +54,19 @@ from dms.messages import (
     DecisionAction,
     DmsState,
     Mode,
+    ModeWhy,
     MotivationSnapshot,
+    MotivationWhy,
+    PreferenceWhy,
     Reason,
     Request,
+    RuleWhy,
     ScreenChoice,
     Speech,
     Touch,
     UserPerception,
     UserState,
+    Why,
 )
 from dms.profiles import ProfileService
 from dms.rules import LiveRules
@@ -339,9 +344,7 @@ class Controller:
             self._on_touch(message, now)
         elif isinstance(message, Speech):
             if message.confidence < self.settings.min_speech_confidence:
-                log.info(
-                    "not understood (confidence %.2f): %r", message.confidence, message.text
-                )
+                log.info("not understood (confidence %.2f): %r", message.confidence, message.text)
                 return
             self._on_answer(message.text, "voice", message, now)
         elif isinstance(message, ScreenChoice):
@@ -699,6 +702,7 @@ class Controller:
         detail: str | None = None,
         args: Mapping[str, Any] | None = None,
         agenda_item: DueItem | None = None,
+        why: Why | None = None,
     ) -> bool:
         if self._robot_blocked:
             if chosen_by == "user" or reason == "user_request":  # said, never dropped silently
@@ -714,7 +718,7 @@ class Controller:
         self.current = Running(
             name, manager, chosen_by, reason, now, user_id, agenda_item=agenda_item
         )
-        self._decide("start", name, reason, chosen_by, detail, now)
+        self._decide("start", name, reason, chosen_by, detail, now, why)
         return True
 
     def _pause(self, running: Running, reason: Reason, now: datetime, detail: str | None) -> None:
@@ -893,7 +897,12 @@ class Controller:
                 return
             behavior = self._motivated_behavior()
             self._start(
-                behavior, "motivation", "motivation", now, f"dominant: {self._dominant() or 'none'}"
+                behavior,
+                "motivation",
+                "motivation",
+                now,
+                f"dominant: {self._dominant() or 'none'}",
+                why=Why(motivation=self._motivation_why()),
             )
             return
         if self._requests:
@@ -907,13 +916,21 @@ class Controller:
         if self._ask_general_question(session, now):
             return
         robot_turn, session.robot_turn = session.robot_turn, False
-        if not robot_turn and self.rng.random() < session.p_user:
-            self._start("menu", "user_choice", "user", now, session.mode_detail)
+        draw = None if robot_turn else self.rng.random()
+        mode = ModeWhy(p_user=session.p_user, draw=draw and round(draw, 4), mode=session.mode)
+        if draw is not None and draw < session.p_user:
+            self._start("menu", "user_choice", "user", now, session.mode_detail, why=Why(mode=mode))
             return
-        self._robot_choice(session, now)
+        self._robot_choice(session, now, mode)
 
-    def _robot_choice(self, session: _Session, now: datetime) -> None:
+    def _robot_choice(self, session: _Session, now: datetime, mode: ModeWhy | None = None) -> None:
         exclude = {session.last_activity} if session.last_activity else set()
+        profile = self._profile()
+        why = Why(
+            mode=mode,
+            preferences=self._preferences_why(profile),
+            motivation=self._motivation_why(),
+        )
         result = self._rule("ChooseEntertainment")
         if (
             result is not None
@@ -921,10 +938,11 @@ class Controller:
             and result.activate[0] in ENTERTAINMENT_ACTIVITIES
         ):
             name = result.activate[0]
-            self._start(name, "preference", "robot", now, f"rule ChooseEntertainment -> {name}")
+            why = why.model_copy(update={"rule": self._rule_why("ChooseEntertainment", result)})
+            detail = f"rule ChooseEntertainment -> {name}"
+            self._start(name, "preference", "robot", now, detail, why=why)
             return
         chooser = self.deps.chooser
-        profile = self._profile()
         entertainment = self.managers[ManagerName.ENTERTAINMENT]
         assert hasattr(entertainment, "choose")
         if chooser is not None and profile is not None:
@@ -933,7 +951,7 @@ class Controller:
             )
         else:
             name = entertainment.choose(self.rng, None, exclude)
-        self._start(name, "preference", "robot", now, "predicted preference")
+        self._start(name, "preference", "robot", now, "predicted preference", why=why)
 
     def _ask_general_question(self, session: _Session, now: datetime) -> bool:
         bank = self.deps.questions
@@ -1081,8 +1099,13 @@ class Controller:
         chosen_by: ChosenBy | None,
         detail: str | None,
         now: datetime,
+        why: Why | None = None,
     ) -> None:
         self.counters.by_reason[reason] = self.counters.by_reason.get(reason, 0) + 1
+        if why is None and action in ("cancel", "fail") and detail:
+            why = Why(evidence=detail)
+        if why is not None and why.motivation is None and reason.startswith("motivation"):
+            why = why.model_copy(update={"motivation": self._motivation_why()})
         self._decisions.append(
             Decision(
                 tick=self._tick,
@@ -1093,8 +1116,43 @@ class Controller:
                 reason=reason,
                 chosen_by=chosen_by,
                 detail=detail,
+                why=why,
             )
         )
+
+    # ------------------------------------------------------------------ why
+
+    def _motivation_why(self) -> MotivationWhy | None:
+        state = self._motivation
+        if state is None:
+            return None
+        snapshot = MotivationSnapshot(**self.deps.motivation.snapshot(state))
+        return MotivationWhy(dominant=snapshot.dominant, drives=snapshot.drives)
+
+    @staticmethod
+    def _rule_why(component: str, result: Any) -> RuleWhy:
+        """The rule that decided: the first ``activate`` that ran, and where it stands."""
+        where = result.activated_at[0] if getattr(result, "activated_at", ()) else None
+        return RuleWhy(
+            component=component,
+            file=where.file if where is not None else None,
+            line=where.line if where is not None else None,
+            activate=list(result.activate),
+        )
+
+    def _preferences_why(self, profile: Profile | None) -> list[PreferenceWhy] | None:
+        """The three activities the user is predicted to like best, with their scores."""
+        chooser = self.deps.chooser
+        if chooser is None or profile is None:
+            return None
+        beliefs = chooser.beliefs(profile)
+        means = {
+            name: a / (a + b)
+            for name, (a, b) in beliefs.items()
+            if name in ENTERTAINMENT_ACTIVITIES and a + b > 0
+        }
+        top = sorted(means, key=lambda name: -means[name])[:3]
+        return [PreferenceWhy(activity=name, score=round(means[name], 3)) for name in top]
 
     def _activity_state(self, running: Running | None) -> ActivityState | None:
         if running is None:

@@ -209,6 +209,47 @@ Reason = Literal[
 ChosenBy = Literal["robot", "user", "agenda", "motivation"]
 
 
+class ModeWhy(Outbound):
+    """How the mode of a choice was drawn: the user's initiative if ``draw < p_user``."""
+
+    p_user: float | None = None
+    draw: float | None = None
+    mode: str | None = None
+
+
+class PreferenceWhy(Outbound):
+    """One activity and how much the user is predicted to like it (0 to 1)."""
+
+    activity: str
+    score: float
+
+
+class MotivationWhy(Outbound):
+    dominant: str | None = None
+    drives: dict[str, float] = Field(default_factory=dict)
+
+
+class RuleWhy(Outbound):
+    """The DMSL rule that decided: its component, where its ``activate`` stands."""
+
+    component: str
+    file: str | None = None
+    line: int | None = None
+    activate: list[str] = Field(default_factory=list)
+
+
+class Why(Outbound):
+    """What decided (CONTRACT.md ``why``); every field optional."""
+
+    mode: ModeWhy | None = None
+    preferences: list[PreferenceWhy] | None = None
+    """The top three activities with their predicted scores."""
+    motivation: MotivationWhy | None = None
+    rule: RuleWhy | None = None
+    evidence: str | None = None
+    """For cancels and failures: what was seen."""
+
+
 class Decision(Outbound):
     """``dms/decision``: one decision, with why it was taken."""
 
@@ -220,6 +261,7 @@ class Decision(Outbound):
     reason: Reason
     chosen_by: ChosenBy | None = None
     detail: str | None = None
+    why: Why | None = None
 
 
 INBOUND_BY_KEY: dict[str, type[Inbound]] = {

@@ -10,7 +10,7 @@ the closures only read the parameters the caller passes. Compile verified progra
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from dms.rules import nodes as n
@@ -32,6 +32,9 @@ class RuleResult:
     activate: tuple[str, ...] = ()
     cancel: tuple[str, ...] = ()
     missing: tuple[str, ...] = ()
+    activated_at: tuple[n.Pos, ...] = field(default=(), compare=False)
+    """Where each ``activate`` that ran stands (file, line), in the order of ``activate``:
+    what a decision's ``why`` names."""
 
     def to_json(self) -> dict[str, list[str]]:
         """The ``dms rules eval`` output object."""
@@ -45,7 +48,7 @@ class RuleResult:
 class _Run:
     """The state of one evaluation: the three profiles and what was produced."""
 
-    __slots__ = ("activate", "cancel", "missing", "profiles")
+    __slots__ = ("activate", "activated_at", "cancel", "missing", "profiles")
 
     def __init__(self, params: Params) -> None:
         self.profiles: tuple[Mapping[str, Any], ...] = (
@@ -55,6 +58,7 @@ class _Run:
         )
         self.missing: list[str] = []
         self.activate: list[str] = []
+        self.activated_at: list[n.Pos] = []
         self.cancel: list[str] = []
 
 
@@ -214,8 +218,13 @@ class _Compiler:
 
     def stmt(self, stmt: n.Stmt) -> StmtFn:
         if isinstance(stmt, n.Activate):
-            name = stmt.name
-            return lambda run: run.activate.append(name)
+            name, pos = stmt.name, stmt.pos
+
+            def activate(run: _Run) -> None:
+                run.activate.append(name)
+                run.activated_at.append(pos)
+
+            return activate
         if isinstance(stmt, n.Cancel):
             cancelled = stmt.name
             return lambda run: run.cancel.append(cancelled)
@@ -367,4 +376,5 @@ class RuleSet:
             tuple(run.activate),
             tuple(run.cancel),
             tuple(sorted(set(missing))) if missing else (),
+            tuple(run.activated_at),
         )
