@@ -364,6 +364,8 @@ class Controller:
                 self._note_initiative(True, now)
         elif request.action == "start":
             self._refuse(request, "start needs an activity")
+        elif request.action == "cancel" and self._withdraw_pending(request.activity):
+            pass  # asked for earlier in this tick and not started yet: it never starts
         elif request.action == "cancel" and running is not None:
             if request.activity in (None, running.name):
                 self._close_question(now)
@@ -383,6 +385,14 @@ class Controller:
         else:
             state = "paused" if running.paused else "running"
             self._refuse(request, f"nothing to {request.action}: {running.name} is {state}")
+
+    def _withdraw_pending(self, activity: str | None) -> bool:
+        """Drop a start of ``activity`` still waiting in this tick; True if there was one."""
+        for asked in self._requests:
+            if asked.target and asked.target == activity:
+                self._requests.remove(asked)
+                return True
+        return False
 
     def _is_the_user(self, by: str | None) -> bool:
         """A request ``by`` the user in front of the robot (``"user"`` or their id)."""

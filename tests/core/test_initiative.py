@@ -192,3 +192,15 @@ def test_stale_perception_keeps_the_activity_for_the_grace_and_then_ends_the_ses
         ends = [d.decision for d in sim.decisions if d.decision.reason == "input_missing"]
         assert ends and ends[0].action == "cancel" and ends[0].activity == "bingo"
         assert sim.last.state.user is None  # type: ignore[union-attr]
+
+
+def test_a_cancel_in_the_same_tick_as_its_start_withdraws_the_start() -> None:
+    with _sim(user_initiative={"unknown": 0.0}) as sim:
+        sim.run_for(3)
+        mark = len(sim.decisions)
+        sim.feed(keys.REQUEST, Request(action="start", activity="bingo", by="app"))
+        sim.feed(keys.REQUEST, Request(action="cancel", activity="bingo", by="app"))
+        sim.tick(urgent=True)
+        decided = [d.decision for d in sim.decisions[mark:]]
+        assert not [d for d in decided if d.activity == "bingo"], decided
+        assert not [e for e in sim.errors if e[1] == keys.REQUEST], sim.errors
