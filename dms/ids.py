@@ -46,6 +46,8 @@ def _fault(trimmed: str) -> str | None:
         return "must not be empty or only white space"
     if len(trimmed) > MAX_ID_LENGTH:
         return f"longer than {MAX_ID_LENGTH} characters"
+    if trimmed.startswith("@"):
+        return "starts with '@', which Zenoh keeps for verbatim chunks (no query reaches it)"
     for char in trimmed:
         if unicodedata.category(char) in _FORBIDDEN_CATEGORIES:
             return f"holds the control or format character U+{ord(char):04X}"

@@ -24,6 +24,7 @@ HOSTILE = [
     ("line\u2028sep", "U+2028"),
     ("a/b", "reserve"),
     ("users*", "reserve"),
+    ("@ann", "verbatim"),
     ("x" * (MAX_ID_LENGTH + 1), "longer"),
     ("\ud800", "U+D800"),  # a lone surrogate
 ]
@@ -40,6 +41,7 @@ def test_hostile_ids_are_refused_naming_the_fault(value: str, fault: str) -> Non
 def test_ids_are_trimmed_and_may_hold_spaces_and_any_script() -> None:
     assert check_identifier("  Ann Smith ") == "Ann Smith"
     assert check_identifier("José-María_3.b") == "José-María_3.b"
+    assert check_identifier("ann@home") == "ann@home"
     assert check_identifier("张伟") == "张伟"
     assert check_identifier("x" * MAX_ID_LENGTH) == "x" * MAX_ID_LENGTH
 
