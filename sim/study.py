@@ -399,10 +399,16 @@ def kendall_tau(predicted: list[str], truth: list[str]) -> float:
 def predicted_ranking(sim: Simulation, user_id: str) -> list[str] | None:
     """The daemon's ranking of the entertainment activities for ``user_id`` now (the
     chooser's expected liking), or None without memory."""
+    from memory.errors import ProfileNotFound
+
     store, chooser = sim.stack.store, sim.stack.chooser
     if store is None or chooser is None:
         return None
-    return chooser.ranking(store.get(user_id), random.Random(0))
+    try:
+        profile = store.get(user_id)
+    except ProfileNotFound:
+        return None  # a session too short to meet the participant
+    return chooser.ranking(profile, random.Random(0))
 
 
 def study_settings(
@@ -508,7 +514,8 @@ def run_study(
 
 
 def _run_session(sim: Simulation, length_s: float, survey_s: float) -> None:
-    """The participant's time with the robot: the session less the survey at its end.
-    At the survey the participant gets up, as in the seed, whatever runs (the activity
-    under way ends ``user_left``: counted as started, not as a cancel)."""
-    sim.run_for(max(0.0, length_s - survey_s))
+    """The participant's time with the robot: the session less the survey at its end
+    (the seed's 3 of 30 minutes: at most a tenth of a shorter session). At the survey the
+    participant gets up whatever runs (the activity under way ends ``user_left``:
+    counted as started, not as a cancel)."""
+    sim.run_for(length_s - min(survey_s, length_s / 10.0))

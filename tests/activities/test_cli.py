@@ -85,7 +85,7 @@ def test_step_runs_on_at_the_end_of_input() -> None:
     result = runner.invoke(app, ["step", str(BEHAVIORS_DIR / "jokes.yaml")], input="\n")
     assert result.exit_code == 0
     assert result.output.strip().endswith("completed: done")
-    assert result.output.count("speech.say") == 8
+    assert result.output.count("speech.say") == 2 + 20 * 2  # intro, 20 jokes, end
 
 
 def test_run_answers_and_reports_json() -> None:

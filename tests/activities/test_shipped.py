@@ -49,10 +49,10 @@ def test_shipped_behaviors_complete_in_plausible_time(shipped: BehaviorLibrary, 
     bench = Bench(shipped, seed=5)
     activity = bench.start(bench.create(name, {"text": "Your doctor at five."}))
     start = bench.now
-    status = bench.finish(activity, limit_s=900)  # nobody answers: timeouts end the questions
+    status = bench.finish(activity, limit_s=1800)  # nobody answers: timeouts end the questions
     assert status is ActivityStatus.COMPLETED, activity.result
     seconds = (bench.now - start).total_seconds()
-    assert seconds < 600
+    assert seconds < 1200  # the quiz's 25 questions, each asked twice, unanswered
     if name not in ("notification", "menu"):
         assert seconds >= 20, f"{name} lasted only {seconds} s"
 
@@ -75,7 +75,7 @@ def test_sleep_shows_closed_eyes_and_dim_leds(bench: Bench) -> None:
 
 def test_quiz_checks_the_answers(bench: Bench) -> None:
     activity = bench.start(bench.create("quiz"))
-    for _ in range(5):
+    for _ in range(25):
         bench.run_until(activity, lambda: activity.state_path.endswith("ASK"))
         question = activity.userdata["question"]
         assert len(question["choices"]) == 4
@@ -83,8 +83,8 @@ def test_quiz_checks_the_answers(bench: Bench) -> None:
         assert activity.deliver(Speech(text=str(question["answer"]), confidence=0.9))
         bench.run_until(activity, lambda: not activity.state_path.endswith("ASK"))
     assert bench.finish(activity) is ActivityStatus.COMPLETED
-    assert activity.result.data["score"] == 5
-    assert "5 right out of 5" in bench.said()[-1]
+    assert activity.result.data["score"] == 25
+    assert "25 right out of 25" in bench.said()[-1]
 
 
 def test_quiz_shoulder_guard_ends_the_game_with_the_score(bench: Bench) -> None:
@@ -101,7 +101,7 @@ def test_bingo_calls_numbers_and_checks_the_card(bench: Bench) -> None:
     activity = bench.start(bench.create("bingo"))
     bench.run_until(activity, lambda: "card" in activity.userdata)
     card = activity.userdata["card"]
-    assert len(card) == 6 and all(1 <= n <= 30 for n in card)
+    assert len(card) == 9 and all(1 <= n <= 60 for n in card)
     bench.run_until(activity, lambda: activity.state_path.endswith("LISTEN"))
     assert activity.deliver(Speech(text="bingo!", confidence=0.9))  # too early
     bench.run_until(activity, lambda: "Not yet" in bench.last_said(), limit_s=30)
@@ -136,7 +136,7 @@ def test_dance_is_music_and_motion_together_until_the_music_ends(bench: Bench) -
     bench.run_until(activity, lambda: not activity.state_path.startswith("DANCE"))
     assert dance.outcome == "done"
     media = [c for c in bench.commands if c.channel == "media"]
-    assert len(media) == 1 and 90 <= media[0].args["duration_s"] <= 120
+    assert len(media) == 1 and 290 <= media[0].args["duration_s"] <= 330  # a whole song
     assert bench.expression.active("motion") is None or bench.finish(activity)
 
 
@@ -234,11 +234,11 @@ def test_paused_activity_resumes_its_sentence_after_a_notification(bench: Bench)
     assert bench.last_said().startswith("Let's play a quiz")
 
 
-def test_jokes_tells_three_jokes(bench: Bench) -> None:
+def test_jokes_tells_twenty_jokes(bench: Bench) -> None:
     activity = bench.start(bench.create("jokes"))
     bench.finish(activity)
-    assert len(activity.result.data["jokes"]) == 3
-    assert len(bench.said()) == 2 + 3 * 2
+    assert len(activity.result.data["jokes"]) == 20
+    assert len(bench.said()) == 2 + 20 * 2
 
 
 def test_the_voice_volume_comes_from_the_voice_settings_rule(bench: Bench) -> None:

@@ -105,7 +105,7 @@ def test_longterm_one_day_json_and_plots(
     total = sum(out["activity_seconds"].values())
     assert 0.9 * 86400 <= total <= 86400  # the robot is always doing something
     assert out["peak_rss_mb"] > 0
-    assert "day 1/1" in captured.err  # the progress bar
+    assert "1/1" in captured.err and "time left" in captured.err  # the progress bar
     for name in ("drives.png", "timeline.png", "by_hour.png"):
         assert (out_dir / name).read_bytes()[:4] == b"\x89PNG"
 
