@@ -20,6 +20,7 @@ from dms.rules.cli import app as rules_app
 from dms.secure_cli import app as secure_app
 from memory.cli import app as users_app
 from memory.cli import db_app
+from memory.sessions_cli import app as sessions_app
 from motivation.cli import app as motivation_app
 from sim.cli import app as sim_app
 from sim.cli import record_command
@@ -34,6 +35,7 @@ app = typer.Typer(
 app.add_typer(rules_app, name="rules", help="Check and evaluate DMSL rule files.")
 app.add_typer(users_app, name="users", help="List, show, export and erase user profiles.")
 app.add_typer(db_app, name="db", help="Database schema migrations.")
+app.add_typer(sessions_app, name="sessions", help="Each real session's Table 4 metrics.")
 app.add_typer(agenda_app, name="agenda", help="Per-user events and reminders.")
 app.add_typer(motivation_app, name="motivation", help="The motivational model.")
 app.add_typer(behavior_app, name="behavior", help="Behavior files: check, draw, step, run.")

@@ -70,6 +70,7 @@ from dms.messages import (
 )
 from dms.profiles import ProfileService
 from dms.rules import LiveRules
+from dms.session_metrics import SessionAccount
 from managers import Manager, ManagerReply, ManagerStatus, make_managers
 from memory import ActivityChooser, Profile, Question, QuestionBank
 from motivation import MotivationModel, MotivationState, Percepts, Stimuli, simulate
@@ -123,6 +124,8 @@ class Counters:
     activity_failures: int = 0
     not_loaded: int = 0
     unanswered: int = 0
+    misheard: int = 0
+    """Utterances under ``min_speech_confidence``: speech recognition errors."""
     by_reason: dict[str, int] = field(default_factory=dict)
 
 
@@ -171,6 +174,8 @@ class _Session:
     robot_turn: bool = False
     """The user left the choice to the robot (declined the menu): the next pick is the
     robot's."""
+    account: SessionAccount | None = None
+    """The session's Table 4 metrics, stored with it when it ends."""
 
 
 class Controller:
@@ -259,6 +264,9 @@ class Controller:
             if self.current is None and self.dialog is None:
                 with guard("choose", self._ready_user()):
                     self._choose(now)
+        if self._session is not None and self._session.account is not None:
+            with guard("metrics"):  # after the sends of this tick: see SessionAccount.on_tick
+                self._session.account.on_tick(now, self.deps.expression.pending)
         state = self._state = self.build_state(now)
         self.counters.decisions += len(self._decisions)
         return TickRecord(self._tick, now, urgent, tuple(self._decisions), state)
@@ -345,6 +353,7 @@ class Controller:
         elif isinstance(message, Speech):
             if message.confidence < self.settings.min_speech_confidence:
                 log.info("not understood (confidence %.2f): %r", message.confidence, message.text)
+                self.counters.misheard += 1
                 return
             self._on_answer(message.text, "voice", message, now)
         elif isinstance(message, ScreenChoice):
@@ -616,6 +625,9 @@ class Controller:
             p_user=0.5,
             mode_detail=None,
             questions_left=self.settings.session_questions,
+            account=SessionAccount(
+                now, misheard=self.counters.misheard, unanswered=self.counters.unanswered
+            ),
         )
         session.mode, session.p_user, session.mode_detail = self._choose_mode(profile)
         log.info("user %s is ready (mode %s)", user_id, session.mode)
@@ -624,7 +636,13 @@ class Controller:
         session = self._session
         self._session = None
         if session is not None and session.session_id is not None:
-            self._profiles_call("end_session", session.session_id, now)
+            metrics = None
+            if session.account is not None:
+                counters = self.counters
+                metrics = session.account.result(
+                    now, misheard=counters.misheard, unanswered=counters.unanswered
+                )
+            self._profiles_call("end_session", session.session_id, now, metrics=metrics)
         if session is not None and self.deps.chooser is not None:
             self.deps.chooser.session_ended(now)  # retrains in the background, if due
 
@@ -1129,6 +1147,8 @@ class Controller:
                 why=why,
             )
         )
+        if self._session is not None and self._session.account is not None:
+            self._session.account.on_decision(self._decisions[-1], now)
 
     # ------------------------------------------------------------------ why
 

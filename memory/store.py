@@ -115,6 +115,19 @@ def _check_time(name: str, value: Any) -> datetime:
     return value
 
 
+def _check_metrics(metrics: Any) -> None:
+    """A session's metrics: a dict of names to finite numbers or None, nothing else
+    (they are stored as JSON and read back by ``dms sessions``)."""
+    if not isinstance(metrics, dict):
+        raise ProfileError(f"metrics: must be a dict (got {metrics!r:.60})")
+    for key, value in metrics.items():
+        number = isinstance(value, int | float) and not isinstance(value, bool)
+        if not isinstance(key, str) or not (
+            value is None or (number and math.isfinite(value))
+        ):
+            raise ProfileError(f"metrics: {key!r:.40} must be a finite number or null")
+
+
 def _check_user_id(user_id: Any) -> str:
     """The id rule of the bus (:mod:`dms.ids`), and already trimmed: a store never renames."""
     try:
@@ -378,6 +391,7 @@ class ProfileStore:
                         "id": s.id,
                         "started": s.started_at.isoformat(),
                         "ended": s.ended_at.isoformat() if s.ended_at else None,
+                        "metrics": s.metrics,
                     }
                     for s in rows(SessionRow)
                 ],
@@ -440,14 +454,43 @@ class ProfileStore:
             session.flush()
             return row.id
 
-    def end_session(self, session_id: int, now: datetime) -> None:
-        """Close the session (the user left)."""
+    def end_session(
+        self, session_id: int, now: datetime, metrics: dict[str, Any] | None = None
+    ) -> None:
+        """Close the session (the user left, or the daemon stops), with its Table 4
+        ``metrics`` when given (``dms.session_metrics``: names to numbers or None)."""
         _check_time("now", now)
+        if metrics is not None:
+            _check_metrics(metrics)
         with self._session() as session:
             row = session.get(SessionRow, session_id)
             if row is None:
                 raise ProfileError(f"session_id: no session {session_id!r}")
             row.ended_at = now
+            if metrics is not None:
+                row.metrics = dict(metrics)
+
+    def sessions(self, since: datetime | None = None) -> list[dict[str, Any]]:
+        """Every session (of every user) started at or after ``since``, oldest first:
+        ``{"session", "user", "started", "ended", "metrics"}`` (times as ISO strings,
+        ``ended`` and ``metrics`` None while a session is open or was stored without).
+        For ``dms sessions``: a deployment's own Table 4."""
+        if since is not None:
+            _check_time("since", since)
+        query = select(SessionRow).order_by(SessionRow.started_at, SessionRow.id)
+        if since is not None:
+            query = query.where(SessionRow.started_at >= since)
+        with self._session() as session:
+            return [
+                {
+                    "session": row.id,
+                    "user": row.user_id,
+                    "started": row.started_at.isoformat(),
+                    "ended": row.ended_at.isoformat() if row.ended_at else None,
+                    "metrics": dict(row.metrics) if row.metrics is not None else None,
+                }
+                for row in session.scalars(query)
+            ]
 
     def record_activity(
         self,

@@ -164,7 +164,7 @@ def test_export_holds_everything_and_is_json(store: ProfileStore) -> None:
     json.dumps(data)
     assert data["profile"]["age"] == 81
     assert data["sessions"] == [
-        {"id": session, "started": NOW.isoformat(), "ended": LATER.isoformat()}
+        {"id": session, "started": NOW.isoformat(), "ended": LATER.isoformat(), "metrics": None}
     ]
     assert [(a["activity"], a["cancelled"], a["chosen_by"]) for a in data["activities"]] == [
         ("quiz", False, "robot"),
