@@ -129,8 +129,14 @@ def test_a_reminder_pauses_the_activity_speaks_and_resumes_it(tmp_path: Path) ->
         assert resumed["reason"] == "agenda"
 
 
+def _seconds(iso_time: str) -> float:
+    return datetime.fromisoformat(iso_time.replace("Z", "+00:00")).timestamp()
+
+
 def test_a_perception_module_whose_token_disappears_is_missing(tmp_path: Path) -> None:
-    with running_daemon(tmp_path) as (daemon, session):
+    """Missing perception is "unknown", not "nobody": the session outlives it for the
+    grace (here 3 s), then ends with reason input_missing."""
+    with running_daemon(tmp_path, "perception_grace_s = 3.0\n") as (daemon, session):
         states = Collector(session, "robots/mini/dms/state")
         perception = client_session(daemon.port)
         try:
@@ -141,7 +147,11 @@ def test_a_perception_module_whose_token_disappears_is_missing(tmp_path: Path) -
             )
             token.undeclare()
             gone = states.wait_for(lambda s: s["inputs"].get("perception/user") == "missing")
-            assert gone["user"] is None
+            assert gone["user"] == {"id": "ann", "ready": False}, "the user is unknown, not gone"
+            ended = states.wait_for(lambda s: s["user"] is None, timeout=20)
+            assert ended["inputs"]["perception/user"] == "missing"
+            kept = _seconds(ended["time"]) - _seconds(gone["time"])
+            assert 2.4 <= kept <= 4.0, f"the session outlived its perception {kept:.1f} s"
         finally:
             perception.close()
 
