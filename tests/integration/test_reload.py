@@ -86,7 +86,10 @@ def test_behaviors_reload_keeps_old_version_on_error_and_takes_new_one(tmp_path:
     shutil.copytree(BEHAVIORS_DIR, folder)
     jokes = folder / "jokes.yaml"
     original = jokes.read_text()
-    intro = "I know some good jokes. Here are a few of them. Touch my right shoulder if you have had enough."
+    intro = (
+        "I know some good jokes. Here are a few of them. "
+        "Touch my right shoulder if you have had enough."
+    )
     assert intro in original
     with running_daemon(tmp_path, extra_config='[behaviors]\nfolder = "behaviors"\n') as (
         daemon,
