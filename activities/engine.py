@@ -15,10 +15,13 @@ status: ``INVALID`` means it was stopped from outside). On top come SMACH's sema
 - an :class:`Iterator` runs its state once per item;
 - a :class:`Guard` (ROS Commander's tactile guard) stops what it contains when a
   touch, a keyword or a timer fires;
-- preemption is cooperative and a status, not an exception: :meth:`Node.preempt`
-  marks a state; at its next tick it stops everything below it (any depth) and ends
-  with the outcome ``preempted``. It may be requested any number of times, also
-  before the state's first tick;
+- preemption is SMACH's, cooperative and a status, not an exception:
+  :meth:`Node.preempt` marks a state; at its next tick a container passes the request
+  to its active states, a leaf ends with the outcome ``preempted``. The container
+  whose transition (or outcome map, ``continue_on``/``break_on``) names that outcome
+  services it and goes on (a cleanup state); one that does not is stopped
+  (``INVALID``) and itself ends ``preempted``, so the request climbs. ``stop``
+  clears a request that was not serviced;
 - pause is history: :meth:`Node.pause` freezes the active states at every depth,
   :meth:`Node.resume` re-enters them and their blocks restart what they were saying.
 """
@@ -187,6 +190,8 @@ class Node:
     """One state. Subclasses implement the hooks; the framework owns ``tick``."""
 
     kind = "state"
+    is_container = False
+    """Containers pass a preemption request on; leaves end ``preempted``."""
 
     def __init__(self, name: str, outcomes: Sequence[str], rt: Runtime, io: Io | None = None):
         self.name = name
@@ -238,11 +243,19 @@ class Node:
         )
 
     def tick(self, now: datetime) -> Status:
-        """Enter if needed, honour a preemption request, else update once."""
-        if self.status in (Status.DONE, Status.FAILED):
+        """Enter if needed, honour a preemption request, else update once.
+
+        A request waits while the state is paused (it is served at the first tick
+        after ``resume``). A leaf asked before its first tick ends ``preempted``
+        without running; a container is entered and passes the request on, so that
+        a cleanup transition of its first state still runs.
+        """
+        if self.status is Status.DONE or self.status is Status.FAILED:
             return self.status
+        if self.paused:
+            return Status.RUNNING
         if self.status is Status.INVALID:
-            if self._preempt_requested:
+            if self._preempt_requested and not self.is_container:
                 self._preempt_requested = False
                 return self._end(now, Status.DONE, PREEMPTED, enter_terminate=False)
             self.status = Status.RUNNING
@@ -255,10 +268,11 @@ class Node:
             self.initialise(now)
         if self._preempt_requested:
             self._preempt_requested = False
-            self.stop(now)
-            return self._end(now, Status.DONE, PREEMPTED, enter_terminate=False)
-        if self.paused:
-            return Status.RUNNING
+            if self.is_container:
+                self.forward_preempt()
+            else:
+                self.stop(now)
+                return self._end(now, Status.DONE, PREEMPTED, enter_terminate=False)
         status = self.update(now)
         if status is Status.DONE:
             if self.outcome is None:
@@ -289,13 +303,21 @@ class Node:
         return Status.DONE
 
     def stop(self, now: datetime) -> None:
-        """Stop from outside, at every depth below: terminate(INVALID)."""
+        """Stop from outside, at every depth below: terminate(INVALID).
+
+        A preemption request not serviced yet is dropped with the run it was meant
+        for (SMACH and YASMIN clear it too): the next entry starts afresh.
+        """
         if self.status is Status.RUNNING:
             for child in self.active_children():
                 child.stop(now)
             self.terminate(now, Status.INVALID)
         self.status = Status.INVALID
         self.paused = False
+        self._preempt_requested = False
+
+    def forward_preempt(self) -> None:
+        """Containers: pass a preemption request on to the states that run (or start)."""
 
     def reset(self) -> None:
         """Forget a finished run so the state can be entered again."""
@@ -304,7 +326,11 @@ class Node:
         self.error = None
 
     def preempt(self) -> None:
-        """Ask the state to end with ``preempted`` at its next tick (cooperative)."""
+        """Ask the state to end with ``preempted`` at its next tick (cooperative).
+
+        Asking again before that tick is the same request; asking a finished state
+        does nothing.
+        """
         if self.status is not Status.DONE and self.status is not Status.FAILED:
             self._preempt_requested = True
 
@@ -363,6 +389,8 @@ class Node:
 
 class Container(Node):
     """A state that holds userdata for the states it contains."""
+
+    is_container = True
 
     def __init__(
         self,
@@ -450,6 +478,10 @@ class StateMachine(Container):
         state.bind(self.data)
         self.current = state
 
+    def forward_preempt(self) -> None:
+        if self.current is not None:
+            self.current.preempt()
+
     def update(self, now: datetime) -> Status:
         for _ in range(MAX_STEPS_PER_TICK):
             state = self.current
@@ -464,6 +496,8 @@ class StateMachine(Container):
             target = self.transitions.get(state.name, {}).get(outcome)
             if target is None:
                 target = outcome  # an outcome of the container passes through
+                if outcome == PREEMPTED:
+                    state.status = Status.INVALID  # not serviced here: it climbs
             self.transitions_taken += 1
             if target in self.states:
                 self._enter(self.states[target])
@@ -484,6 +518,17 @@ class StateMachine(Container):
         return out
 
 
+class ConcurrenceWait(Enum):
+    """When a concurrence preempts its other states (SMACH's ``child_termination_cb``)."""
+
+    MATCH = "match"
+    """As soon as an entry of the outcome map matches (the callback tests the map)."""
+    ALL = "all"
+    """Never: every state runs to its end (SMACH's default, no callback)."""
+    ANY = "any"
+    """As soon as any state ends (the callback returns True)."""
+
+
 class Concurrence(Container):
     """States ticked together; the ``outcome_map`` decides when and how it ends."""
 
@@ -499,11 +544,23 @@ class Concurrence(Container):
         default_outcome: str,
         io: Io | None = None,
         userdata: Mapping[str, Any] | None = None,
+        wait: ConcurrenceWait = ConcurrenceWait.MATCH,
     ):
         super().__init__(name, outcomes, rt, io, userdata)
         self.states = dict(states)
         self.outcome_map = {k: dict(v) for k, v in outcome_map.items()}
         self.default_outcome = default_outcome
+        self.wait = wait
+        self._services = frozenset(
+            child
+            for wanted in self.outcome_map.values()
+            for child, out in wanted.items()
+            if out == PREEMPTED
+        )
+        self._winding_down = False
+        """The others were asked to stop (a match, a state ended, or a preemption)."""
+        self._preempted = False
+        """The concurrence itself was preempted (from above, or a state's climbed)."""
 
     def children(self) -> Sequence[Node]:
         return list(self.states.values())
@@ -512,26 +569,67 @@ class Concurrence(Container):
         return [s for s in self.states.values() if s.status is Status.RUNNING]
 
     def enter_children(self, now: datetime) -> None:
+        self._winding_down = False
+        self._preempted = False
         for state in self.states.values():
             state.reset()
             state.bind(self.data)
 
-    def update(self, now: datetime) -> Status:
+    def forward_preempt(self) -> None:
+        self._preempted = True
+        self._wind_down()
+
+    def _wind_down(self) -> None:
+        self._winding_down = True
         for state in self.states.values():
-            running = state.status in (Status.INVALID, Status.RUNNING)
-            if running and state.tick(now) is Status.FAILED:
-                self._stop_all(now)
-                return self.fail(f"{state.name}: {state.error}")
+            if state.status is Status.INVALID or state.status is Status.RUNNING:
+                state.preempt()
+
+    def _tick_all(self, now: datetime) -> Node | None:
+        for state in self.states.values():
+            live = state.status is Status.INVALID or state.status is Status.RUNNING
+            if live and state.tick(now) is Status.FAILED:
+                return state
+        return None
+
+    def _match(self) -> str | None:
         for outcome, wanted in self.outcome_map.items():
             if all(
                 self.states[child].status is Status.DONE and self.states[child].outcome == out
                 for child, out in wanted.items()
             ):
-                self._stop_all(now)
-                return self.finish(outcome)
-        if all(state.status is Status.DONE for state in self.states.values()):
-            return self.finish(self.default_outcome)
-        return Status.RUNNING
+                return outcome
+        return None
+
+    def update(self, now: datetime) -> Status:
+        """Tick every state; when the wait mode says so, preempt the others (their
+        cleanup runs), and once all have ended read the outcome map in order."""
+        failed = self._tick_all(now)
+        if failed is None and not self._winding_down:
+            done = [s for s in self.states.values() if s.status is Status.DONE]
+            climbed = any(s.outcome == PREEMPTED and s.name not in self._services for s in done)
+            if climbed:
+                self._preempted = True
+            if (
+                climbed
+                or (self.wait is ConcurrenceWait.ANY and done)
+                or (self.wait is ConcurrenceWait.MATCH and self._match() is not None)
+            ):
+                self._wind_down()
+                failed = self._tick_all(now)
+        if failed is not None:
+            self._stop_all(now)
+            return self.fail(f"{failed.name}: {failed.error}")
+        if any(state.status is not Status.DONE for state in self.states.values()):
+            return Status.RUNNING
+        outcome = self._match()
+        if outcome is not None:
+            return self.finish(outcome)
+        if self._preempted:
+            for state in self.states.values():
+                state.status = Status.INVALID  # not serviced here: it climbs
+            return self.finish(PREEMPTED)
+        return self.finish(self.default_outcome)
 
     def _stop_all(self, now: datetime) -> None:
         for state in self.states.values():
@@ -542,6 +640,7 @@ class Concurrence(Container):
         out = super().describe()
         out["outcome_map"] = {k: dict(v) for k, v in self.outcome_map.items()}
         out["default_outcome"] = self.default_outcome
+        out["wait"] = self.wait.value
         return out
 
 
@@ -582,6 +681,10 @@ class Iterator(Container):
     def active_children(self) -> Sequence[Node]:
         return [self.state] if self.state.status is Status.RUNNING else []
 
+    def forward_preempt(self) -> None:
+        if self.index < len(self.items):
+            self.state.preempt()
+
     def enter_children(self, now: datetime) -> None:
         items = self.rt.render(self.items_spec, self.data)
         if isinstance(items, int) and not isinstance(items, bool):
@@ -611,6 +714,8 @@ class Iterator(Container):
             if outcome in self.break_on:
                 return self.finish(self.break_on[outcome])
             if outcome not in self.continue_on:
+                if outcome == PREEMPTED:
+                    self.state.status = Status.INVALID  # not serviced here: it climbs
                 return self.finish(outcome)
             self.index += 1
             self._next()
@@ -679,6 +784,9 @@ class Guard(Container):
     def active_children(self) -> Sequence[Node]:
         return [self.state] if self.state.status is Status.RUNNING else []
 
+    def forward_preempt(self) -> None:
+        self.state.preempt()
+
     def enter_children(self, now: datetime) -> None:
         self.fired = None
         timer = self.trigger.timer_s
@@ -702,6 +810,8 @@ class Guard(Container):
         if status is Status.FAILED:
             return self.fail(f"{self.state.name}: {self.state.error}")
         if status is Status.DONE:
+            if self.state.outcome == PREEMPTED:
+                self.state.status = Status.INVALID  # a guard never services it: it climbs
             return self.finish(self.state.outcome or "")
         return Status.RUNNING
 
