@@ -7,12 +7,20 @@ once (:meth:`Agenda.delivered`); misses are queued and written within
 A miss that is lost in a crash is found again on restart, because the item's cursor
 in the database moves only when its occurrence is logged.
 
+Every delivery and miss is also appended to a journal (the daemon's, on by default
+with ``background=True``: :func:`memory.db.side_file` ``(url, "agenda-spool")``, a
+:class:`memory.spool.Spool`) and ``fsync``'d before the call that records it returns; the
+background thread writes it to the database and marks it done. A kill -9 while the write
+waits (another process holds SQLite's lock, PostgreSQL is away) loses nothing: the next
+start replays the journal into the database before it computes what is due, so an
+occurrence delivered before the crash is never delivered again.
+
 With ``background=True`` (the daemon) the calls from the tick (:meth:`Agenda.due`,
 :meth:`Agenda.delivered`, :meth:`Agenda.user_perceived`) never touch the database: their
 writes and reads run on one background thread, in order. Database I/O never holds the
 index's lock (``_lock``), only ``_io_lock``, which serializes it; so a locked or absent
 database never stalls the tick. Lock order: ``_io_lock`` before ``_lock``, never the
-other way.
+other way; ``_journal_lock`` comes after both.
 """
 
 from __future__ import annotations
@@ -23,9 +31,20 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
+from pathlib import Path
 from typing import Any
 
-from sqlalchemy import Connection, Engine, bindparam, delete, insert, inspect, select, update
+from sqlalchemy import (
+    Connection,
+    Engine,
+    bindparam,
+    delete,
+    insert,
+    inspect,
+    make_url,
+    select,
+    update,
+)
 from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.exc import IntegrityError, SQLAlchemyError
 from sqlalchemy.orm import Session, sessionmaker
@@ -56,7 +75,8 @@ from agenda.schedule import (
 )
 from dms.activity_names import ACTIVITIES
 from dms.ids import InvalidIdentifier, check_identifier
-from memory.db import make_engine
+from memory.db import make_engine, side_file
+from memory.spool import Spool
 from memory.store import register_user_data
 
 log = logging.getLogger(__name__)
@@ -71,12 +91,29 @@ MAX_GRACE_S = 7 * 86400
 MAX_TEXT = 500
 
 
+JOURNAL_SUFFIX = "agenda-spool"
+"""The journal's file: ``<db file>.agenda-spool``, or in the state folder for a server."""
+
+
 @dataclass(frozen=True, slots=True)
-class _Delivery:
-    item: AgendaItem
-    fire_us: int
-    recorded_us: int
-    cursor_us: int | None
+class _Record:
+    """One delivery or miss waiting for the database: its log row and the item's new cursor.
+
+    ``entry`` is JSON-able (it is what the journal holds); ``journaled`` says whether it
+    is in the journal, so that a flush marks exactly those done.
+    """
+
+    item_id: int
+    entry: dict[str, Any]
+    journaled: bool
+
+
+def journal_path(url: str) -> Path | None:
+    """Where the agenda's journal for ``url`` lives; None for an in-memory database."""
+    parsed = make_url(url)
+    if parsed.get_backend_name() == "sqlite" and parsed.database in (None, "", ":memory:"):
+        return None
+    return side_file(url, JOURNAL_SUFFIX)
 
 
 def _one_line(error: BaseException) -> str:
@@ -92,17 +129,26 @@ class Agenda:
         url: str,
         user_exists: Callable[[str], bool] | None = None,
         background: bool = False,
+        journal: bool | None = None,
     ) -> None:
+        """Open the agenda at ``url``, replay its journal and load every item.
+
+        ``journal``: keep deliveries and misses in the fsync'd journal until the database
+        has them (default: with ``background``, i.e. in the daemon). Only one process may
+        journal for a database: the command line never does.
+        """
         self._user_exists = user_exists
         self._lock = threading.RLock()
         self._io_lock = threading.Lock()
+        self._journal_lock = threading.Lock()
+        self._journal: Spool | None = None
         self._jobs = (
             ThreadPoolExecutor(max_workers=1, thread_name_prefix="dms-agenda")
             if background
             else None
         )
         self._index = AgendaIndex()
-        self._queue: list[MissedRun | _Delivery] = []
+        self._queue: list[_Record] = []
         self._flush_at_us: int | None = None
         self._schedules: dict[tuple[str, str, str, datetime | None], Schedule] = {}
         self.problems: list[str] = []
@@ -116,13 +162,76 @@ class Agenda:
         try:
             self._prepare_schema()
             self._sessions = sessionmaker(self._engine, expire_on_commit=False)
+            path = journal_path(url) if (background if journal is None else journal) else None
+            if path is not None:
+                self._journal = Spool(path)
+                self._replay_journal()
             self._load(None)
+            self._apply_queued()
         except (SQLAlchemyError, OSError) as error:
+            self._close_journal()
             self._engine.dispose()
             raise AgendaError(f"cannot open the agenda at {url}: {_one_line(error)}") from None
         except AgendaError:
+            self._close_journal()
             self._engine.dispose()
             raise
+
+    def _replay_journal(self) -> None:
+        """At start: write what the journal holds (a crash's or an outage's), in order.
+
+        Runs before the items are loaded, so their cursors already count these records.
+        If the database will not take them now (another process holds its lock), they
+        stay queued and journaled, :meth:`_apply_queued` moves the cursors in memory, and
+        the next flush writes them.
+        """
+        assert self._journal is not None
+        entries = list(self._journal.pending)
+        if not entries:
+            return
+        self._queue = [_Record(int(e["item_id"]), e, True) for e in entries]
+        try:
+            self._flush()
+        except AgendaError as error:
+            log.warning("%s; %d journaled record(s) kept for later", error, len(entries))
+            self._flush_at_us = 0
+            return
+        log.info("agenda: %d journaled record(s) replayed into the database", len(entries))
+
+    def _apply_queued(self) -> None:
+        """Move the loaded items' cursors past the records still queued (journal replay)."""
+        with self._lock:
+            for record in self._queue:
+                if record.item_id in self._index.entries:
+                    cursor = record.entry["cursor_us"]
+                    self._index.delivered(record.item_id, None if cursor is None else int(cursor))
+
+    def _close_journal(self) -> None:
+        with self._journal_lock:
+            if self._journal is not None:
+                self._journal.close()
+                self._journal = None
+
+    def _enqueue(self, entries: list[dict[str, Any]]) -> None:
+        """Queue records for the database, journaled first (``_lock`` held: keeps the order).
+
+        A journal that cannot be written (disk full) is reported and the records are kept
+        in memory only, as without a journal.
+        """
+        journaled = False
+        with self._journal_lock:
+            if self._journal is not None:
+                try:
+                    self._journal.append(entries)
+                    journaled = True
+                except OSError as error:
+                    log.error(
+                        "agenda: cannot write the journal %s (%s); %d record(s) in memory only",
+                        self._journal.path,
+                        error,
+                        len(entries),
+                    )
+        self._queue.extend(_Record(int(e["item_id"]), e, journaled) for e in entries)
 
     def _offload(self, job: Callable[[], None]) -> None:
         """Run ``job`` on the background thread, or at once without one (never under _lock)."""
@@ -173,12 +282,25 @@ class Agenda:
         )
 
     def close(self) -> None:
-        """Finish the background work, write what is queued and release the database."""
+        """Finish the background work, write what is queued and release the database.
+
+        With a journal, what the database will not take now stays journaled for the next
+        start (one log line says how much); without one, AgendaError.
+        """
         if self._jobs is not None:
             self._jobs.shutdown(wait=True)
         try:
             self._flush()
+        except AgendaError as error:
+            with self._journal_lock:
+                kept = 0 if self._journal is None else len(self._journal)
+            if not kept:
+                raise
+            log.warning(
+                "%s; %d agenda record(s) kept in the journal for the next start", error, kept
+            )
         finally:
+            self._close_journal()
             self._engine.dispose()
 
     # ------------------------------------------------------------------ management
@@ -255,11 +377,21 @@ class Agenda:
         """At daemon start: settle what fell due while it was down.
 
         Occurrences still within their grace time wait for their user (and come out of
-        :meth:`due`); older ones are recorded as missed. Returns those that wait.
+        :meth:`due`); older ones are recorded as missed. Returns those that wait. The
+        journal was replayed when the agenda was opened, so nothing delivered before a
+        crash waits again; with a journal, a database that will not take the misses now
+        (locked) gets them later.
         """
         with self._lock:
             self._advance(to_us(now), down=True)
-        self._flush()
+        try:
+            self._flush()
+        except AgendaError as error:
+            if self._journal is None:
+                raise
+            log.warning("%s; journaled, retrying in %s s", error, RETRY_AFTER_S)
+            with self._lock:
+                self._flush_at_us = to_us(now) + RETRY_AFTER_S * US_PER_S
         with self._lock:
             return self._index.all_waiting()
 
@@ -285,8 +417,10 @@ class Agenda:
     def delivered(self, item: DueItem, now: datetime) -> None:
         """``item`` was started or spoken: log it and schedule its next occurrence.
 
-        The agenda moves on at once, so the occurrence is never returned again; if the
-        database is unavailable the record is kept and written later.
+        The agenda moves on at once, so the occurrence is never returned again. The
+        record is journaled (one fsync'd line) before this returns and written to the
+        database afterwards, off the tick; if the database is unavailable it is written
+        later, also after a crash (the next start replays the journal).
         """
         fire_us = to_us(item.fire_time)
         now_us = to_us(now)
@@ -294,7 +428,7 @@ class Agenda:
             cursor = self._index.next_after_delivery(item.item_id, fire_us)
             stored = self._index.entries[item.item_id].item
             self._index.delivered(item.item_id, cursor)
-            self._queue.append(_Delivery(stored, fire_us, now_us, cursor))
+            self._enqueue([_delivery_entry(stored, fire_us, now_us, cursor)])
         self._offload(self._flush_or_retry(now_us))
 
     def _flush_or_retry(self, now_us: int) -> Callable[[], None]:
@@ -361,7 +495,7 @@ class Agenda:
     def _advance(self, now_us: int, down: bool) -> None:
         runs = self._index.advance(now_us, down)
         if runs:
-            self._queue.extend(runs)
+            self._enqueue([_miss_entry(run) for run in runs])
             if self._flush_at_us is None:
                 self._flush_at_us = now_us + FLUSH_AFTER_S * US_PER_S
 
@@ -379,7 +513,7 @@ class Agenda:
                     return
             try:
                 with self._engine.begin() as connection:
-                    gone = _write(connection, records)
+                    gone = _write(connection, [record.entry for record in records])
             except SQLAlchemyError as error:
                 raise AgendaError(f"cannot write the agenda's log: {_one_line(error)}") from None
             with self._lock:
@@ -388,6 +522,10 @@ class Agenda:
                     self._index.drop(item_id)
                 if not self._queue:
                     self._flush_at_us = None
+            journaled = sum(record.journaled for record in records)
+            with self._journal_lock:
+                if journaled and self._journal is not None:
+                    self._journal.done(journaled)
 
     def _load(self, user_id: str | None) -> None:
         """Bring the index in line with the database, for one user or everyone.
@@ -407,7 +545,7 @@ class Agenda:
 
         An item with a record still queued keeps its cursor here: the row is older.
         """
-        queued = {record.item.item_id for record in self._queue}
+        queued = {record.item_id for record in self._queue}
         seen: set[int] = set()
         for row in rows:
             seen.add(row.id)
@@ -554,46 +692,78 @@ def _check_lead(schedule: Schedule, first: datetime, lead_s: int) -> None:
         fire = after
 
 
-def _write(connection: Connection, records: list[MissedRun | _Delivery]) -> set[int]:
-    """Log ``records`` and move their items' cursors, in bulk (one statement each).
+def _delivery_entry(
+    item: AgendaItem, fire_us: int, recorded_us: int, cursor_us: int | None
+) -> dict[str, Any]:
+    """A delivery as the journal and :func:`_write` take it (JSON-able)."""
+    return {
+        "item_id": item.item_id,
+        "user_id": item.user_id,
+        "kind": str(item.kind),
+        "what": _what(item),
+        "outcome": str(Outcome.DELIVERED),
+        "first_us": fire_us,
+        "last_us": fire_us,
+        "count": 1,
+        "recorded_us": recorded_us,
+        "reason": "",
+        "cursor_us": cursor_us,
+    }
 
-    An occurrence already logged (by another process, or before a crash) is skipped:
-    ``(item_id, fire_time)`` is unique. So is one of an item no longer stored (removed
-    or erased by another process): an erased user's log must not come back. Returns
-    the ids of those items.
+
+def _miss_entry(run: MissedRun) -> dict[str, Any]:
+    """A run of misses as the journal and :func:`_write` take it (JSON-able)."""
+    item = run.item
+    return {
+        "item_id": item.item_id,
+        "user_id": item.user_id,
+        "kind": str(item.kind),
+        "what": _what(item),
+        "outcome": str(Outcome.MISSED),
+        "first_us": run.first_us,
+        "last_us": run.last_us,
+        "count": run.count,
+        "recorded_us": run.recorded_us,
+        "reason": run.reason if run.exact else f"{run.reason} (at least this many)",
+        "cursor_us": run.cursor_us,
+    }
+
+
+def _write(connection: Connection, entries: list[dict[str, Any]]) -> set[int]:
+    """Log ``entries`` (deliveries and misses) and move their items' cursors, in bulk.
+
+    An occurrence already logged (by another process, or before a crash: a journal
+    replayed again) is skipped: ``(item_id, fire_time)`` is unique; the cursors are set
+    in the entries' order, so a replay ends where the original writes did. So is one of
+    an item no longer stored (removed or erased by another process): an erased user's
+    log must not come back. Returns the ids of those items.
     """
-    ids = {record.item.item_id for record in records}
+    ids = {int(entry["item_id"]) for entry in entries}
     table = ItemRow.__table__
     stored = set(connection.scalars(select(table.c.id).where(table.c.id.in_(ids))))
     gone = ids - stored
     rows: list[dict[str, Any]] = []
     cursors: dict[int, int | None] = {}
-    for record in records:
-        item = record.item
-        if item.item_id in gone:
+    for entry in entries:
+        item_id = int(entry["item_id"])
+        if item_id in gone:
             continue
-        if isinstance(record, _Delivery):
-            first = last = record.fire_us
-            outcome, count, reason = Outcome.DELIVERED, 1, ""
-        else:
-            first, last, count = record.first_us, record.last_us, record.count
-            outcome = Outcome.MISSED
-            reason = record.reason if record.exact else f"{record.reason} (at least this many)"
         rows.append(
             {
-                "item_id": item.item_id,
-                "user_id": item.user_id,
-                "kind": str(item.kind),
-                "what": _what(item),
-                "outcome": str(outcome),
-                "fire_time": from_us(first),
-                "last_fire_time": from_us(last),
-                "count": count,
-                "recorded_at": from_us(record.recorded_us),
-                "reason": reason,
+                "item_id": item_id,
+                "user_id": entry["user_id"],
+                "kind": entry["kind"],
+                "what": entry["what"],
+                "outcome": entry["outcome"],
+                "fire_time": from_us(int(entry["first_us"])),
+                "last_fire_time": from_us(int(entry["last_us"])),
+                "count": int(entry["count"]),
+                "recorded_at": from_us(int(entry["recorded_us"])),
+                "reason": entry["reason"],
             }
         )
-        cursors[item.item_id] = record.cursor_us
+        cursor = entry["cursor_us"]
+        cursors[item_id] = None if cursor is None else int(cursor)
     if not rows:
         return gone
     _insert_new(connection, rows)
