@@ -75,7 +75,7 @@ def to_dot(spec: BehaviorSpec, active: str = "") -> str:
         for name, child in children.items():
             child_path = f"{path}/{name}" if path else name
             draw(child, child_path, indent)
-        if state.block == "state_machine" and first is not None:
+        if state.block in ("state_machine", "sequence") and first is not None:
             target_path = f"{path}/{first}" if path else first
             edges.append(f"  {_id(path)}__entry -> {entry(target_path, children[first])};")
             for name, child in children.items():
@@ -149,7 +149,7 @@ def to_mermaid(spec: BehaviorSpec, active: str = "") -> str:
             return
         for name, child in children.items():
             declare(name, child, f"{path}/{name}" if path else name, indent)
-        if state.block != "state_machine":
+        if state.block not in ("state_machine", "sequence"):
             for name in children:
                 lines.append(f"{indent}[*] --> {_id(f'{path}/{name}' if path else name)}")
             return

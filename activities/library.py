@@ -18,6 +18,7 @@ from activities.blocks import BLOCKS
 from activities.context import ActivityContext
 from activities.engine import (
     Concurrence,
+    ConcurrenceWait,
     Guard,
     Io,
     Iterator,
@@ -209,8 +210,8 @@ class BehaviorLibrary:
         if state.block in BLOCKS:
             return BLOCKS[state.block](name, rt, params, io)
         children = {n: self._build(s, n, rt) for n, s in state.states.items()}
-        if state.block == "state_machine":
-            return StateMachine(
+        if state.block in ("state_machine", "sequence"):
+            machine = StateMachine(
                 name,
                 params.get("outcomes") or [],
                 rt,
@@ -220,6 +221,8 @@ class BehaviorLibrary:
                 io,
                 params.get("userdata"),
             )
+            machine.kind = state.block
+            return machine
         if state.block == "concurrence":
             return Concurrence(
                 name,
@@ -230,6 +233,7 @@ class BehaviorLibrary:
                 params["default_outcome"],
                 io,
                 params.get("userdata"),
+                ConcurrenceWait(params.get("wait") or "match"),
             )
         if state.block == "iterator":
             (child,) = children.values()

@@ -23,6 +23,7 @@ or a container: ``state_machine``, ``concurrence``, ``iterator``, ``guard``,
 
 from __future__ import annotations
 
+import itertools
 import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -36,7 +37,11 @@ from activities.engine import PREEMPTED
 from activities.errors import BehaviorError
 from activities.template import is_single_placeholder
 
-CONTAINERS = ("state_machine", "concurrence", "iterator", "guard", "behavior")
+CONTAINERS = ("state_machine", "sequence", "concurrence", "iterator", "guard", "behavior")
+MACHINES = ("state_machine", "sequence")
+"""Containers whose states are joined by transitions (a sequence adds its own)."""
+GROUPS = (*MACHINES, "concurrence")
+"""Containers with a ``states`` mapping."""
 STATE_KEYS = ("transitions", "input_keys", "output_keys", "remapping")
 TOP_KEYS = ("name", "description", "outcomes", "initial", "userdata", "states")
 
@@ -47,10 +52,24 @@ CONTAINER_PARAMS: dict[str, dict[str, Param]] = {
         "userdata": Param("mapping"),
         "states": Param("mapping", required=True),
     },
+    "sequence": {
+        "outcomes": Param("string_list", required=True),
+        "connector_outcome": Param(
+            "string", required=True, doc="The outcome that goes on to the next state."
+        ),
+        "userdata": Param("mapping"),
+        "states": Param("mapping", required=True),
+    },
     "concurrence": {
         "outcomes": Param("string_list", required=True),
         "default_outcome": Param("string", required=True),
         "outcome_map": Param("mapping", default={}),
+        "wait": Param(
+            "string",
+            default="match",
+            doc="When the other states are preempted: match (an outcome_map entry "
+            "matched), any (a state ended) or all (never: SMACH's default).",
+        ),
         "userdata": Param("mapping"),
         "states": Param("mapping", required=True),
     },
@@ -152,7 +171,7 @@ class StateSpec:
 
     def to_dict(self) -> dict[str, Any]:
         body = dict(self.params)
-        if self.block in ("state_machine", "concurrence"):
+        if self.block in GROUPS:
             body["states"] = {name: s.to_dict() for name, s in self.states.items()}
         elif self.block in ("iterator", "guard"):
             body["state"] = {name: s.to_dict() for name, s in self.states.items()}
@@ -166,7 +185,7 @@ class StateSpec:
         """The outcomes this state may end with (``preempted`` aside)."""
         if self.block in BLOCKS:
             return BLOCKS[self.block].outcomes_for(self.params)
-        if self.block in ("state_machine", "concurrence"):
+        if self.block in GROUPS:
             return tuple(self.params.get("outcomes") or ())
         if self.block == "iterator":
             breaks = [str(v) for v in (self.params.get("break_on") or {}).values()]
@@ -325,7 +344,7 @@ def _parse_state(
     specs = CONTAINER_PARAMS[block]
     checked = _check_params(checker, path, block, params, specs, line)
     children: dict[str, StateSpec] = {}
-    child_key = "states" if block in ("state_machine", "concurrence") else "state"
+    child_key = "states" if block in GROUPS else "state"
     raw_children = checked.get(child_key)
     if block != "behavior":
         if not isinstance(raw_children, dict) or not raw_children:
@@ -341,7 +360,20 @@ def _parse_state(
                 if spec is not None:
                     children[str(child_name)] = spec
     own = {k: plain(v) for k, v in checked.items() if k != child_key}
+    if block == "sequence":
+        _connect(children, own.get("connector_outcome"))
+    if block == "concurrence" and own.get("wait", "match") not in ("match", "any", "all"):
+        checker.problem(line, path, "concurrence: wait must be match, any or all")
     return StateSpec(name, block, own, states=children, line=line)
+
+
+def _connect(children: Mapping[str, StateSpec], connector: Any) -> None:
+    """A sequence: each state's connector outcome goes to the next one (SMACH's
+    ``Sequence.add``); a transition written for it wins, the last one passes it up."""
+    names = list(children)
+    for name, following in itertools.pairwise(names):
+        if isinstance(connector, str):
+            children[name].transitions.setdefault(connector, following)
 
 
 def parse_state_entry(checker: _Checker, path: str, raw: Any, line: int) -> StateSpec | None:
@@ -391,7 +423,7 @@ def parse_state_entry(checker: _Checker, path: str, raw: Any, line: int) -> Stat
 def _check_machine(checker: _Checker, state: StateSpec, path: str) -> None:
     """Container rules: transitions, reachability, outcome maps; recursively."""
     prefix = f"{path}/" if path else ""
-    if state.block == "state_machine":
+    if state.block in MACHINES:
         outcomes = set(state.params.get("outcomes") or [])
         names = list(state.states)
         initial = state.params.get("initial", names[0] if names else None)
@@ -534,9 +566,7 @@ def _check_reference_outcomes(spec: BehaviorSpec, specs: Mapping[str, BehaviorSp
     problems: list[str] = []
 
     def walk(state: StateSpec, path: str) -> None:
-        outcomes = (
-            set(state.params.get("outcomes") or []) if state.block == "state_machine" else set()
-        )
+        outcomes = set(state.params.get("outcomes") or []) if state.block in MACHINES else set()
         for name, child in state.states.items():
             child_path = f"{path}/{name}" if path else name
             target = specs.get(str(child.params.get("name"))) if child.block == "behavior" else None
