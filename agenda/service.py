@@ -75,7 +75,7 @@ from agenda.schedule import (
 )
 from dms.activity_names import ACTIVITIES
 from dms.ids import InvalidIdentifier, check_identifier
-from memory.db import make_engine, side_file
+from memory.db import as_url, make_engine, side_file
 from memory.spool import Spool
 from memory.store import register_user_data
 
@@ -110,7 +110,7 @@ class _Record:
 
 def journal_path(url: str) -> Path | None:
     """Where the agenda's journal for ``url`` lives; None for an in-memory database."""
-    parsed = make_url(url)
+    parsed = make_url(as_url(url))  # a plain file path (``--db dms.db``) too
     if parsed.get_backend_name() == "sqlite" and parsed.database in (None, "", ":memory:"):
         return None
     return side_file(url, JOURNAL_SUFFIX)
