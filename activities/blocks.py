@@ -19,9 +19,9 @@ from typing import Any, ClassVar
 from activities.engine import Event, Io, Node, Runtime, Status
 from activities.synonyms import match_activity
 from activities.template import as_text, is_single_placeholder
-from dms.activity_names import USER_SELECTABLE
-from dms.expression import CommandHandle, CommandStatus, Priority
-from dms.messages import Channel, ScreenChoice, Speech, Touch
+from dms.kernel.activity_names import USER_SELECTABLE
+from dms.kernel.expression import CommandHandle, CommandStatus, Priority
+from dms.kernel.messages import Channel, ScreenChoice, Speech, Touch
 
 
 @dataclass(frozen=True)

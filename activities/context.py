@@ -7,7 +7,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
-from dms.expression import ExpressionArbiter
+from dms.kernel.expression import ExpressionArbiter
 
 
 class RuleResult(Protocol):

@@ -41,7 +41,7 @@ import yaml
 
 from activities.errors import BehaviorError
 from activities.template import PROFILE_NAMESPACES, Missing, lookup, render
-from dms.messages import ScreenChoice, Speech, Touch
+from dms.kernel.messages import ScreenChoice, Speech, Touch
 
 if TYPE_CHECKING:
     from activities.context import ActivityContext

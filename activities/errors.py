@@ -9,7 +9,7 @@
 
 from __future__ import annotations
 
-from dms.errors import DmsError
+from dms.kernel.errors import DmsError
 
 
 class BehaviorError(DmsError):

@@ -1,6 +1,6 @@
 """Running one behavior on the simulated Mini and a virtual clock (``dms behavior step|run``).
 
-:class:`BehaviorRun` ticks an activity at 2 Hz on a :class:`~dms.clock.VirtualClock`
+:class:`BehaviorRun` ticks an activity at 2 Hz on a :class:`~dms.kernel.clock.VirtualClock`
 over a :class:`~sim.robot.SimRobot`, and reports each state entered with the
 userdata and the robot commands since the last report, as ROS Commander lets its user
 step through a behavior one node at a time.
@@ -19,9 +19,9 @@ from activities.context import ActivityContext
 from activities.engine import Event
 from activities.library import BehaviorLibrary
 from activities.spec import BehaviorSpec
-from dms.clock import VirtualClock
-from dms.expression import ExpressionArbiter
-from dms.messages import RobotCommand, ScreenChoice, Speech, Touch
+from dms.kernel.clock import VirtualClock
+from dms.kernel.expression import ExpressionArbiter
+from dms.kernel.messages import RobotCommand, ScreenChoice, Speech, Touch
 
 TICK_S = 0.5
 

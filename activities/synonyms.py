@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import re
 
-from dms.activity_names import ACTIVITIES
+from dms.kernel.activity_names import ACTIVITIES
 
 SYNONYMS: dict[str, tuple[str, ...]] = {
     "multimedia": ("multimedia", "music", "song", "songs", "video", "videos", "photos", "film"),

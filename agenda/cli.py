@@ -19,7 +19,7 @@ import typer
 from agenda.errors import AgendaError
 from agenda.items import ItemSpec, UpcomingItem
 from agenda.service import Agenda
-from dms.clock import RealClock
+from dms.kernel.clock import RealClock
 
 app = typer.Typer(no_args_is_help=True)
 

@@ -18,7 +18,7 @@ from pydantic import BaseModel, ConfigDict, StrictInt, ValidationError
 
 from agenda.errors import AgendaError
 from agenda.schedule import zone
-from dms.clock import iso
+from dms.kernel.clock import iso
 
 
 class ItemKind(StrEnum):

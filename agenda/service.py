@@ -73,8 +73,8 @@ from agenda.schedule import (
     to_us,
     zone,
 )
-from dms.activity_names import ACTIVITIES
-from dms.ids import InvalidIdentifier, check_identifier
+from dms.kernel.activity_names import ACTIVITIES
+from dms.kernel.ids import InvalidIdentifier, check_identifier
 from memory.db import as_url, make_engine, side_file
 from memory.spool import Spool
 from memory.store import register_user_data

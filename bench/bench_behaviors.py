@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from activities.context import ActivityContext
 from activities.engine import Node, Runtime, StateMachine, Status
-from dms.expression import ExpressionArbiter
+from dms.kernel.expression import ExpressionArbiter
 from sim.robot import SimRobot
 
 TICKS = 200_000

@@ -27,11 +27,11 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from dms import keys  # noqa: E402
 from dms.assembly import build_stack  # noqa: E402
-from dms.clock import VirtualClock  # noqa: E402
 from dms.config import Settings  # noqa: E402
-from dms.messages import UserPerception  # noqa: E402
+from dms.kernel import keys  # noqa: E402
+from dms.kernel.clock import VirtualClock  # noqa: E402
+from dms.kernel.messages import UserPerception  # noqa: E402
 from memory import ProfileStore  # noqa: E402
 from sim.robot import SimRobot  # noqa: E402
 from tests.integration.harness import (  # noqa: E402

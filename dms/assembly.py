@@ -20,11 +20,11 @@ from activities import BehaviorError, BehaviorLibrary, decision_warnings
 from agenda import Agenda, AgendaError
 from dms.config import Settings
 from dms.controller import Controller, ControllerDeps
-from dms.errors import ConfigError
-from dms.expression import ExpressionArbiter
 from dms.inputs import InputBoard
-from dms.messages import RobotCommand
-from dms.ports import RobotPort
+from dms.kernel.errors import ConfigError
+from dms.kernel.expression import ExpressionArbiter
+from dms.kernel.messages import RobotCommand
+from dms.kernel.ports import RobotPort
 from dms.profiles import ProfileService
 from dms.rules import LiveRules, RulesError
 from memory import ActivityChooser, PreferenceModel, ProfileError, ProfileStore, QuestionBank

@@ -20,8 +20,8 @@ from typing import Any
 
 import zenoh
 
-from dms import keys
-from dms.errors import ConfigError
+from dms.kernel import keys
+from dms.kernel.errors import ConfigError
 
 DEFAULT_LISTEN = ("tcp/127.0.0.1:7447",)
 JSON = zenoh.Encoding.APPLICATION_JSON

@@ -15,7 +15,7 @@ import typer
 
 from activities.cli import app as behavior_app
 from agenda.cli import app as agenda_app
-from dms.errors import DmsError
+from dms.kernel.errors import DmsError
 from dms.rules.cli import app as rules_app
 from dms.secure_cli import app as secure_app
 from memory.cli import app as users_app
@@ -49,7 +49,7 @@ def schema(
     directory: Annotated[Path, typer.Argument(help="Where to write the JSON Schemas.")],
 ) -> None:
     """Write a JSON Schema for every public message into DIRECTORY."""
-    from dms.messages import write_schemas
+    from dms.kernel.messages import write_schemas
 
     for path in write_schemas(directory):
         typer.echo(str(path))

@@ -1,7 +1,7 @@
 """The daemon's configuration: a TOML file, then command-line flags on top.
 
 Every section is validated by pydantic; a wrong value is reported as one line naming
-the file, the field and what was wrong (:class:`dms.errors.ConfigError`).
+the file, the field and what was wrong (:class:`dms.kernel.errors.ConfigError`).
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from dms.errors import ConfigError
-from dms.keys import INPUT_KEYS, ROBOT_ID_RE
+from dms.kernel.errors import ConfigError
+from dms.kernel.keys import INPUT_KEYS, ROBOT_ID_RE
 
 Fraction = float
 

@@ -2,7 +2,7 @@
 
 ``Controller.tick(now, monotonic)`` runs steps 1 to 9 of DESIGN.md's decision loop
 once and returns a :class:`TickRecord`: the decisions taken, with their reasons, and
-the resulting :class:`~dms.messages.DmsState`. It never reads the clock, never blocks
+the resulting :class:`~dms.kernel.messages.DmsState`. It never reads the clock, never blocks
 and never touches Zenoh: the daemon calls it at 2 Hz (and at once on urgent inputs)
 and publishes the record; simulations call it on a virtual clock.
 
@@ -31,9 +31,6 @@ from typing import Any
 from activities import ActivityContext, BehaviorLibrary, reload_rules_and_behaviors
 from activities.synonyms import match_activity, requests_activity
 from agenda import Agenda, DueItem
-from dms import keys
-from dms.activity_names import ACTIVITIES, ENTERTAINMENT_ACTIVITIES, ManagerName, manager_of
-from dms.clock import iso
 from dms.config import ControllerSettings
 from dms.dialog import (
     CONFIRM_STOP,
@@ -44,10 +41,13 @@ from dms.dialog import (
     feedback_score,
 )
 from dms.dialog import SOURCE as DIALOG_SOURCE
-from dms.expression import ExpressionArbiter
 from dms.faults import FaultBarrier
 from dms.inputs import InputBoard, InputSnapshot
-from dms.messages import (
+from dms.kernel import keys
+from dms.kernel.activity_names import ACTIVITIES, ENTERTAINMENT_ACTIVITIES, ManagerName, manager_of
+from dms.kernel.clock import iso
+from dms.kernel.expression import ExpressionArbiter
+from dms.kernel.messages import (
     ActivityState,
     ChosenBy,
     Decision,

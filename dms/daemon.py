@@ -20,17 +20,16 @@ from types import FrameType
 from typing import Any
 
 from activities import reload_rules_and_behaviors
-from dms import keys
 from dms.assembly import Stack, build_stack
 from dms.bus import ZenohBus, make_config
-from dms.clock import Clock, RealClock, Ticker, iso
 from dms.config import Settings
 from dms.controller import TickRecord
-from dms.errors import DmsError
-from dms.ids import InvalidIdentifier, check_identifier, printable
 from dms.inputs import InputRejected, parse_input
-from dms.local_bus import InMemoryBus
-from dms.messages import (
+from dms.kernel import keys
+from dms.kernel.clock import Clock, RealClock, Ticker, iso
+from dms.kernel.errors import DmsError
+from dms.kernel.ids import InvalidIdentifier, check_identifier, printable
+from dms.kernel.messages import (
     Decision,
     DmsState,
     ErrorReport,
@@ -38,7 +37,8 @@ from dms.messages import (
     RobotCommand,
     RobotFeedback,
 )
-from dms.ports import RobotPort
+from dms.kernel.ports import RobotPort
+from dms.local_bus import InMemoryBus
 from dms.rate_caps import RateCaps
 from dms.reloader import Reloader
 from dms.robot_link import ZenohRobot

@@ -16,7 +16,7 @@ from datetime import datetime, timedelta
 from enum import StrEnum
 from typing import Any
 
-from dms.expression import ExpressionArbiter, Priority
+from dms.kernel.expression import ExpressionArbiter, Priority
 
 SOURCE = "dms"
 """The expression source of the controller's own dialogs."""

@@ -21,7 +21,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 
-from dms.ids import printable
+from dms.kernel.ids import printable
 
 log = logging.getLogger(__name__)
 

@@ -21,9 +21,9 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ValidationError
 
-from dms import keys
-from dms.errors import DmsError
-from dms.messages import INBOUND_BY_KEY, ProfileParams
+from dms.kernel import keys
+from dms.kernel.errors import DmsError
+from dms.kernel.messages import INBOUND_BY_KEY, ProfileParams
 
 MAX_PAYLOAD_BYTES = 64 * 1024
 """Larger payloads are rejected before parsing: nothing legitimate is this big."""

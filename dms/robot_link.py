@@ -14,7 +14,7 @@ from collections import deque
 from collections.abc import Callable
 from datetime import datetime
 
-from dms.messages import RobotCommand, RobotFeedback
+from dms.kernel.messages import RobotCommand, RobotFeedback
 
 _interrupts = itertools.count(1)
 

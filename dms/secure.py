@@ -35,8 +35,8 @@ from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
-from dms.errors import ConfigError
-from dms.keys import ROBOT_ID_RE
+from dms.kernel.errors import ConfigError
+from dms.kernel.keys import ROBOT_ID_RE
 
 ROLES = ("dms", "perception", "robot", "app", "admin")
 """``dms`` is the daemon; the others are the programs around it."""

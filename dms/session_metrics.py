@@ -37,8 +37,8 @@ import statistics
 from collections.abc import Callable, Sequence
 from datetime import datetime
 
-from dms.expression import CommandHandle
-from dms.messages import Decision
+from dms.kernel.expression import CommandHandle
+from dms.kernel.messages import Decision
 
 NOT_COUNTED = frozenset({"menu", "notification", "wait", "sleep", "instructions"})
 """Activities that are not what the user came for (the paper counts entertainment)."""

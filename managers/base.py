@@ -16,8 +16,8 @@ from enum import StrEnum
 from typing import Any
 
 from activities import Activity, ActivityContext, ActivityStatus, BehaviorLibrary
-from dms.activity_names import ACTIVITIES, ManagerName
-from dms.messages import ScreenChoice, Speech, Touch
+from dms.kernel.activity_names import ACTIVITIES, ManagerName
+from dms.kernel.messages import ScreenChoice, Speech, Touch
 
 log = logging.getLogger(__name__)
 

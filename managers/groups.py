@@ -6,7 +6,7 @@ import random
 from collections.abc import Callable, Collection
 
 from activities import BehaviorLibrary
-from dms.activity_names import ENTERTAINMENT_ACTIVITIES, ManagerName
+from dms.kernel.activity_names import ENTERTAINMENT_ACTIVITIES, ManagerName
 from managers.base import Manager
 
 EntertainmentChooser = Callable[[random.Random, Collection[str]], str]

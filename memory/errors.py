@@ -14,7 +14,7 @@
 
 from __future__ import annotations
 
-from dms.errors import DmsError
+from dms.kernel.errors import DmsError
 
 
 class ProfileError(DmsError):

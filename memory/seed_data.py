@@ -16,7 +16,7 @@ import random
 from dataclasses import dataclass
 from pathlib import Path
 
-from dms.activity_names import ENTERTAINMENT_ACTIVITIES
+from dms.kernel.activity_names import ENTERTAINMENT_ACTIVITIES
 
 SEED_CSV = Path(__file__).resolve().parent / "data" / "seed_rankings.csv"
 FEATURE_COLUMNS = ("age", "sex", "education", "occupation", "hobbies", "lives_alone")

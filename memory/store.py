@@ -33,7 +33,7 @@ from sqlalchemy.exc import (
 from sqlalchemy.exc import TimeoutError as PoolTimeout
 from sqlalchemy.orm import Session, sessionmaker
 
-from dms.ids import InvalidIdentifier, check_identifier
+from dms.kernel.ids import InvalidIdentifier, check_identifier
 from memory import migrations, proactivity
 from memory.db import as_url, default_url, make_engine
 from memory.errors import (
@@ -129,7 +129,7 @@ def _check_metrics(metrics: Any) -> None:
 
 
 def _check_user_id(user_id: Any) -> str:
-    """The id rule of the bus (:mod:`dms.ids`), and already trimmed: a store never renames."""
+    """The id rule of the bus (:mod:`dms.kernel.ids`), already trimmed: a store never renames."""
     try:
         trimmed = check_identifier(user_id, "user_id")
     except InvalidIdentifier as error:

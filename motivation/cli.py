@@ -20,7 +20,7 @@ import numpy as np
 import typer
 
 from dms.config import read_toml
-from dms.errors import ConfigError
+from dms.kernel.errors import ConfigError
 from motivation.config import MotivationConfig, MotivationConfigError, load_config
 
 app = typer.Typer(no_args_is_help=True)

@@ -24,7 +24,7 @@ from pydantic import (
 from pydantic.fields import FieldInfo
 from pydantic_core import ErrorDetails
 
-from dms.activity_names import ACTIVITIES
+from dms.kernel.activity_names import ACTIVITIES
 
 StimulusSource = Literal["user", "darkness", "quiet", "caress", "music"]
 """What perception can excite: a user present and engaged, a dark room, a quiet

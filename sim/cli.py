@@ -301,8 +301,8 @@ def robot_command(
 ) -> None:
     """The simulated Mini as its own process: executes robot/command, publishes robot/feedback."""
     from dms.bus import ZenohClient, make_config
-    from dms.clock import RealClock
-    from dms.keys import ROBOT_ID_RE
+    from dms.kernel.clock import RealClock
+    from dms.kernel.keys import ROBOT_ID_RE
     from sim.robot_node import RobotNode
 
     if not ROBOT_ID_RE.match(robot_id):
@@ -346,7 +346,7 @@ def record_command(
     import time
 
     from dms.bus import ZenohClient, make_config
-    from dms.keys import ROBOT_ID_RE
+    from dms.kernel.keys import ROBOT_ID_RE
     from sim.recording import McapRecorder, record_until
 
     if not ROBOT_ID_RE.match(robot_id):

@@ -1,13 +1,13 @@
 """The sim package's exceptions.
 
-``SimError`` (a :class:`dms.errors.DmsError`) is the root: the CLI prints it as one
+``SimError`` (a :class:`dms.kernel.errors.DmsError`) is the root: the CLI prints it as one
 ``dms: ...`` line. ``SpecError`` names the file, line and field of a bad persona or
 scenario; ``RecordingError`` a recording that cannot be read or written.
 """
 
 from __future__ import annotations
 
-from dms.errors import DmsError
+from dms.kernel.errors import DmsError
 
 
 class SimError(DmsError):

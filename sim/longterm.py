@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from dms.config import Settings
-from dms.messages import RobotCommand
+from dms.kernel.messages import RobotCommand
 from sim.persona import WEEKDAYS, Persona, load_persona, shipped_personas
 from sim.study import DecisionRow, SessionMetrics, SessionObserver, command_handle
 from sim.user import SimulatedUser

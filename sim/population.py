@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import random
 
-from dms.activity_names import ENTERTAINMENT_ACTIVITIES
+from dms.kernel.activity_names import ENTERTAINMENT_ACTIVITIES
 from sim.persona import Patience, Persona, Preferences, Proactivity, Span, SpeechHabits
 
 AGES = (18, 52)

@@ -24,8 +24,8 @@ from mcap.records import Channel, Message, Schema
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
-from dms import keys
-from dms.messages import SCHEMAS, json_schema
+from dms.kernel import keys
+from dms.kernel.messages import SCHEMAS, json_schema
 from sim.errors import RecordingError
 
 SCHEMA_BY_KEY: dict[str, str] = {
@@ -42,7 +42,7 @@ SCHEMA_BY_KEY: dict[str, str] = {
     keys.DMS_STATE: "dms_state",
     keys.DMS_DECISION: "dms_decision",
 }
-"""The schema (a name in :data:`dms.messages.SCHEMAS`) of each contract key."""
+"""The schema (a name in :data:`dms.kernel.messages.SCHEMAS`) of each contract key."""
 
 CHUNK_SIZE = 8 * 1024
 """Small chunks: a recorder killed outright loses only the last few seconds."""
@@ -226,7 +226,7 @@ def read_recording(path: Path) -> Recording:
 def _iso_ns(ns: int) -> str:
     from datetime import UTC, datetime
 
-    from dms.clock import iso
+    from dms.kernel.clock import iso
 
     return iso(datetime.fromtimestamp(ns / 1e9, UTC))
 

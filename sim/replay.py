@@ -21,10 +21,10 @@ from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
-from dms import keys
 from dms.config import Settings
 from dms.inputs import InputRejected, parse_input
-from dms.messages import Decision
+from dms.kernel import keys
+from dms.kernel.messages import Decision
 from sim.errors import RecordingError
 from sim.recording import Recording, read_recording
 

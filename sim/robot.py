@@ -1,6 +1,6 @@
 """The simulated Mini: executes robot commands with plausible durations.
 
-It implements :class:`dms.ports.RobotPort`. Every command reports ``started`` at once,
+It implements :class:`dms.kernel.ports.RobotPort`. Every command reports ``started`` at once,
 then ``done`` when its duration has passed on the caller's clock: speech by word count
 at the speaking rate, media by ``args.duration_s``, motions from a table, screen and
 LED commands immediately. ``interrupt`` stops a command (``interrupted``).
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Literal
 
-from dms.messages import RobotCommand, RobotFeedback
+from dms.kernel.messages import RobotCommand, RobotFeedback
 
 Fault = Literal["fail", "hang", "stall"]
 

@@ -13,10 +13,10 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from dms import keys
 from dms.bus import ZenohClient
-from dms.clock import Clock
-from dms.messages import RobotCommand
+from dms.kernel import keys
+from dms.kernel.clock import Clock
+from dms.kernel.messages import RobotCommand
 
 POLL_S = 0.02
 

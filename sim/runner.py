@@ -9,9 +9,9 @@ from datetime import datetime, timedelta
 from pathlib import Path
 from typing import Any
 
-from dms import keys
 from dms.config import Settings
-from dms.messages import (
+from dms.kernel import keys
+from dms.kernel.messages import (
     DmsState,
     ProfileParams,
     Request,

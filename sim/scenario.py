@@ -33,9 +33,9 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from dms.activity_names import ACTIVITIES
 from dms.config import Settings
-from dms.messages import Decision, DmsState
+from dms.kernel.activity_names import ACTIVITIES
+from dms.kernel.messages import Decision, DmsState
 from sim.specfile import Path_, load_spec, read_yaml, validate
 
 SCENARIO_DIR = Path(__file__).parent / "scenarios"

@@ -40,8 +40,8 @@ from datetime import UTC, datetime
 from typing import Any, Literal
 
 from dms.config import Settings
-from dms.expression import CommandHandle
-from dms.messages import Decision, RobotCommand
+from dms.kernel.expression import CommandHandle
+from dms.kernel.messages import Decision, RobotCommand
 from sim.harness import Simulation, TimedDecision
 from sim.persona import Persona, Preferences, load_persona, shipped_personas
 from sim.population import INITIATIVE_ANSWER, paper_participant

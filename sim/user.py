@@ -23,9 +23,9 @@ from datetime import datetime, timedelta
 
 from pydantic import BaseModel
 
-from dms import keys
-from dms.activity_names import ACTIVITIES, ENTERTAINMENT_ACTIVITIES
-from dms.messages import Decision, RobotCommand, ScreenChoice, Speech, Touch, UserPerception
+from dms.kernel import keys
+from dms.kernel.activity_names import ACTIVITIES, ENTERTAINMENT_ACTIVITIES
+from dms.kernel.messages import Decision, RobotCommand, ScreenChoice, Speech, Touch, UserPerception
 from sim.persona import Persona, Span
 
 Output = tuple[str, BaseModel]

@@ -22,11 +22,11 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from dms import keys
 from dms.bus import ZenohClient, make_config
-from dms.clock import Clock, RealClock
 from dms.config import Settings
-from dms.messages import Decision, RobotCommand, ScreenChoice, Speech, Touch
+from dms.kernel import keys
+from dms.kernel.clock import Clock, RealClock
+from dms.kernel.messages import Decision, RobotCommand, ScreenChoice, Speech, Touch
 from sim.persona import Persona, load_persona
 from sim.user import Output, SimulatedUser
 

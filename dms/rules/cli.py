@@ -9,7 +9,7 @@ from typing import Annotated, Any
 
 import typer
 
-from dms.errors import DmsError
+from dms.kernel.errors import DmsError
 from dms.rules.loader import lint_files, load_rules
 from dms.rules.schema import ParameterSchema, TypeName
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from dms.errors import DmsError
+from dms.kernel.errors import DmsError
 from dms.rules.nodes import Pos
 
 

@@ -13,8 +13,8 @@ from typing import Any
 import pytest
 
 from activities import Activity, ActivityContext, ActivityStatus, BehaviorLibrary
-from dms.expression import ExpressionArbiter
-from dms.messages import RobotCommand
+from dms.kernel.expression import ExpressionArbiter
+from dms.kernel.messages import RobotCommand
 from sim.robot import SimRobot
 
 T0 = datetime(2026, 11, 23, 9, 0, tzinfo=UTC)

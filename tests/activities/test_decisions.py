@@ -19,7 +19,7 @@ from activities import BehaviorLibrary, decision_problems, reload_rules_and_beha
 from activities.cli import app
 from activities.library import BEHAVIORS_DIR
 from dms.config import load_config
-from dms.errors import ConfigError
+from dms.kernel.errors import ConfigError
 from dms.rules import LiveRules, check_outcomes, rules_from_text
 from sim.harness import Simulation
 

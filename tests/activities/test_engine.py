@@ -9,7 +9,7 @@ import pytest
 
 from activities import ActivityStatus
 from activities.engine import PREEMPTED, StateMachine, Status
-from dms.messages import ScreenChoice, Speech, Touch
+from dms.kernel.messages import ScreenChoice, Speech, Touch
 from tests.activities.conftest import Bench, FakeRules
 
 THREE_LEVELS = """

@@ -7,8 +7,8 @@ from datetime import timedelta
 import pytest
 
 from activities import ActivityStatus, BehaviorLibrary
-from dms.expression import CommandStatus, ExpressionArbiter, Priority
-from dms.messages import RobotCommand
+from dms.kernel.expression import CommandStatus, ExpressionArbiter, Priority
+from dms.kernel.messages import RobotCommand
 from sim.robot import SimRobot
 from tests.activities.conftest import T0, Bench
 

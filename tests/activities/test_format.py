@@ -15,7 +15,7 @@ from activities.blocks import BLOCKS
 from activities.library import BEHAVIORS_DIR
 from activities.spec import SCHEMA_PATH, json_schema, parse_file, parse_text
 from activities.synonyms import match_activity
-from dms.activity_names import ACTIVITIES
+from dms.kernel.activity_names import ACTIVITIES
 
 
 @pytest.mark.parametrize("path", sorted(BEHAVIORS_DIR.glob("*.yaml")), ids=lambda p: p.stem)

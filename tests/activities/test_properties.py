@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from activities import ActivityStatus, BehaviorLibrary
-from dms.messages import ScreenChoice, Speech, Touch
+from dms.kernel.messages import ScreenChoice, Speech, Touch
 from tests.activities.conftest import Bench
 
 LIBRARY = BehaviorLibrary.load()

@@ -6,8 +6,8 @@ import pytest
 
 from activities import Activity, ActivityStatus, BehaviorLibrary
 from activities.engine import Concurrence, StateMachine
-from dms.activity_names import ACTIVITIES, USER_SELECTABLE
-from dms.messages import RobotCommand, ScreenChoice, Speech, Touch
+from dms.kernel.activity_names import ACTIVITIES, USER_SELECTABLE
+from dms.kernel.messages import RobotCommand, ScreenChoice, Speech, Touch
 from tests.activities.conftest import Bench, FakeRules
 
 

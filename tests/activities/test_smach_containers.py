@@ -8,7 +8,7 @@ from typing import Any
 
 from activities import ActivityStatus
 from activities.engine import Node, StateMachine, Status
-from dms.messages import Touch
+from dms.kernel.messages import Touch
 from tests.activities.conftest import Bench
 
 # SMACH's Setter writes a = 'A'; its Getter copies a into b.

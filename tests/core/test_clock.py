@@ -7,7 +7,7 @@ from datetime import UTC, datetime
 
 import pytest
 
-from dms.clock import RealClock, Ticker, VirtualClock, iso
+from dms.kernel.clock import RealClock, Ticker, VirtualClock, iso
 
 
 def test_virtual_clock_moves_only_forward() -> None:

@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from dms.config import load_config
-from dms.errors import ConfigError
-from dms.messages import SCHEMAS, write_schemas
+from dms.kernel.errors import ConfigError
+from dms.kernel.messages import SCHEMAS, write_schemas
 from motivation import DEFAULT_DRIVES
 from motivation import load_config as load_motivation
 

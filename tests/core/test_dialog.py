@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from datetime import UTC, datetime
 
-from dms import keys
 from dms.config import Settings
 from dms.dialog import Dialog, DialogKind, confirm_dialog, feedback_dialog
-from dms.expression import ExpressionArbiter
-from dms.messages import RobotCommand, Touch, UserPerception
+from dms.kernel import keys
+from dms.kernel.expression import ExpressionArbiter
+from dms.kernel.messages import RobotCommand, Touch, UserPerception
 from sim.harness import Simulation
 from sim.robot import SimRobot
 

@@ -16,10 +16,10 @@ from typing import Any
 
 import pytest
 
-from dms import keys
 from dms.config import Settings
 from dms.controller import TickRecord
-from dms.messages import Request, Touch, UserPerception
+from dms.kernel import keys
+from dms.kernel.messages import Request, Touch, UserPerception
 from sim.harness import Simulation
 
 START = datetime(2026, 11, 23, 10, 0, tzinfo=UTC)

@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from dms.ids import MAX_ID_LENGTH, InvalidIdentifier, check_identifier, printable
 from dms.inputs import InputRejected, parse_input
+from dms.kernel.ids import MAX_ID_LENGTH, InvalidIdentifier, check_identifier, printable
 
 HOSTILE = [
     ("", "empty"),

@@ -11,9 +11,9 @@ from datetime import UTC, datetime
 
 import pytest
 
-from dms import keys
 from dms.config import Settings
-from dms.messages import Request, Speech, UserPerception
+from dms.kernel import keys
+from dms.kernel.messages import Request, Speech, UserPerception
 from memory import proactivity
 from sim.harness import Simulation
 

@@ -6,9 +6,9 @@ import json
 
 import pytest
 
-from dms import keys
 from dms.inputs import MAX_PAYLOAD_BYTES, InputBoard, InputRejected, parse_input
-from dms.messages import ProfileParams, Request, Touch, UserPerception
+from dms.kernel import keys
+from dms.kernel.messages import ProfileParams, Request, Touch, UserPerception
 
 VALID: dict[str, dict[str, object]] = {
     keys.PERCEPTION_USER: {"present": True, "user_id": "ann", "ready": True, "engagement": 0.5},

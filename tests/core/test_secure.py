@@ -18,7 +18,7 @@ from cryptography.x509.oid import NameOID
 
 from dms import secure
 from dms.cli import main
-from dms.errors import ConfigError
+from dms.kernel.errors import ConfigError
 
 
 def _load(path: Path) -> dict[str, object]:
@@ -146,8 +146,8 @@ def test_the_daemons_rules_give_each_role_only_its_keys(tmp_path: Path) -> None:
 
 
 def test_the_keys_granted_are_the_daemons_keys() -> None:
-    """A renamed key in dms.keys must not leave the ACL granting a key nobody uses."""
-    from dms import keys
+    """A renamed key in dms.kernel.keys must not leave the ACL granting a key nobody uses."""
+    from dms.kernel import keys
 
     granted = {
         k.rstrip("*").rstrip("/")

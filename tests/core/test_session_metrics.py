@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from dms.expression import CommandHandle, CommandStatus, Priority
-from dms.messages import Decision
+from dms.kernel.expression import CommandHandle, CommandStatus, Priority
+from dms.kernel.messages import Decision
 from dms.session_metrics import METRIC_KEYS, SessionAccount
 from memory import ProfileStore
 from memory.errors import ProfileError

@@ -5,9 +5,9 @@ from __future__ import annotations
 from datetime import UTC, datetime
 from pathlib import Path
 
-from dms import keys
 from dms.config import Settings
-from dms.messages import Request, UserPerception
+from dms.kernel import keys
+from dms.kernel.messages import Request, UserPerception
 from sim.harness import Simulation
 
 START = datetime(2026, 11, 23, 10, 0, tzinfo=UTC)

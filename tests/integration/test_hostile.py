@@ -32,10 +32,10 @@ import zenoh
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
-from dms.activity_names import ACTIVITIES
-from dms.ids import MAX_ID_LENGTH
 from dms.inputs import InputRejected, parse_input
-from dms.keys import INPUT_KEYS
+from dms.kernel.activity_names import ACTIVITIES
+from dms.kernel.ids import MAX_ID_LENGTH
+from dms.kernel.keys import INPUT_KEYS
 from tests.integration.harness import Collector, put, running_daemon, wait_token
 
 pytestmark = pytest.mark.integration

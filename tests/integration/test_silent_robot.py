@@ -14,7 +14,7 @@ from datetime import datetime
 from pathlib import Path
 
 from dms.bus import ZenohClient, make_config
-from dms.clock import RealClock
+from dms.kernel.clock import RealClock
 from sim.robot_node import RobotNode
 from tests.integration.harness import Collector, DaemonProcess, client_session, put, wait_token
 

@@ -7,7 +7,7 @@ import statistics
 from collections import Counter
 from datetime import timedelta
 
-from dms.activity_names import ENTERTAINMENT_ACTIVITIES
+from dms.kernel.activity_names import ENTERTAINMENT_ACTIVITIES
 from memory import ActivityChooser, PreferenceModel, ProfileStore
 from memory.seed_data import SEED_CSV, make_personas
 from tests.memory.conftest import NOW

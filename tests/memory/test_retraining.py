@@ -11,7 +11,7 @@ from typing import Any
 from sqlalchemy import text
 from typer.testing import CliRunner
 
-from dms.activity_names import ENTERTAINMENT_ACTIVITIES
+from dms.kernel.activity_names import ENTERTAINMENT_ACTIVITIES
 from memory import ActivityChooser, PreferenceModel, ProfileStore
 from memory.cli import app
 from tests.memory.conftest import NOW

@@ -13,10 +13,10 @@ from pathlib import Path
 
 import pytest
 
-from dms.activity_names import ENTERTAINMENT_ACTIVITIES
 from dms.assembly import build_stack
 from dms.config import Settings
 from dms.daemon import Daemon
+from dms.kernel.activity_names import ENTERTAINMENT_ACTIVITIES
 from dms.local_bus import InMemoryBus
 from memory import PreferenceModel, ProfileStore
 from sim.robot import SimRobot

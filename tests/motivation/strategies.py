@@ -14,7 +14,7 @@ from zoneinfo import ZoneInfo
 import numpy as np
 from hypothesis import strategies as st
 
-from dms.activity_names import ACTIVITIES
+from dms.kernel.activity_names import ACTIVITIES
 from motivation import MotivationModel, MotivationState, Stimuli, load_config
 from motivation.config import STIMULUS_SOURCES
 from motivation.model import NO_DOMINANT

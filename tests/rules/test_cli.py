@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner, Result
 
-from dms.errors import DmsError
+from dms.kernel.errors import DmsError
 from dms.rules import cli as rules_cli
 
 from .conftest import EXAMPLES

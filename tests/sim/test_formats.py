@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from dms.expression import CommandHandle, CommandStatus, Priority
-from dms.messages import Decision
+from dms.kernel.expression import CommandHandle, CommandStatus, Priority
+from dms.kernel.messages import Decision
 from sim.errors import SpecError
 from sim.harness import TimedDecision
 from sim.longterm import plan_visits

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from dms.activity_names import ENTERTAINMENT_ACTIVITIES
+from dms.kernel.activity_names import ENTERTAINMENT_ACTIVITIES
 from sim.errors import SpecError
 from sim.persona import load_persona, shipped_personas
 

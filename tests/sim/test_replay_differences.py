@@ -15,9 +15,9 @@ from pathlib import Path
 import pytest
 
 from dms.cli import main
-from dms.clock import iso
 from dms.config import Settings, load_config
-from dms.messages import Decision
+from dms.kernel.clock import iso
+from dms.kernel.messages import Decision
 from sim.recording import McapRecorder
 from sim.replay import replay
 

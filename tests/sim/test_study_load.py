@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from dms import keys
 from dms.config import Settings
-from dms.expression import Priority
-from dms.messages import Request, UserPerception
+from dms.kernel import keys
+from dms.kernel.expression import Priority
+from dms.kernel.messages import Request, UserPerception
 from sim.harness import Simulation
 from sim.study import SessionObserver, command_handle
 

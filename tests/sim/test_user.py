@@ -5,8 +5,8 @@ from __future__ import annotations
 import random
 from datetime import UTC, datetime, timedelta
 
-from dms import keys
-from dms.messages import Decision, RobotCommand, ScreenChoice, Speech, Touch
+from dms.kernel import keys
+from dms.kernel.messages import Decision, RobotCommand, ScreenChoice, Speech, Touch
 from sim.persona import Persona, Preferences, SpeechHabits
 from sim.user import SimulatedUser
 

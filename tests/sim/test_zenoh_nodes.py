@@ -15,8 +15,8 @@ import pytest
 import zenoh
 
 from dms.bus import ZenohClient, make_config
-from dms.clock import RealClock
 from dms.config import Settings
+from dms.kernel.clock import RealClock
 from sim.robot_node import RobotNode
 from sim.visitor import start_visitor
 from tests.integration.harness import (

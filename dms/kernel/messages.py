@@ -14,8 +14,8 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, StringConstraints, field_validator
 
-from dms.activity_names import ACTIVITIES
-from dms.ids import Identifier
+from dms.kernel.activity_names import ACTIVITIES
+from dms.kernel.ids import Identifier
 
 ROBOT_ID_PATTERN = r"^[a-z0-9_-]+$"
 

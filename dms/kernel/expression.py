@@ -24,8 +24,8 @@ from datetime import datetime, timedelta
 from enum import IntEnum, StrEnum
 from typing import Any
 
-from dms.messages import Channel, RobotCommand
-from dms.ports import RobotPort
+from dms.kernel.messages import Channel, RobotCommand
+from dms.kernel.ports import RobotPort
 
 
 class Priority(IntEnum):

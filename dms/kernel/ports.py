@@ -11,7 +11,7 @@ from collections.abc import Callable
 from datetime import datetime
 from typing import Protocol
 
-from dms.messages import RobotCommand, RobotFeedback
+from dms.kernel.messages import RobotCommand, RobotFeedback
 
 
 class RobotPort(Protocol):
