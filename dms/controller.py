@@ -26,7 +26,7 @@ import random
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 from activities import ActivityContext, BehaviorLibrary, reload_rules_and_behaviors
 from activities.synonyms import match_activity, requests_activity
@@ -76,6 +76,7 @@ from memory import ActivityChooser, Profile, Question, QuestionBank
 from motivation import MotivationModel, MotivationState, Percepts, Stimuli, simulate
 
 log = logging.getLogger(__name__)
+_T = TypeVar("_T")
 
 NO_FEEDBACK_FOR = frozenset({"menu", "notification", "sleep", "wait", "instructions"})
 """Activities after which the robot does not ask how much the user liked them."""
@@ -104,15 +105,46 @@ class Running:
     agenda_item: DueItem | None = None
 
 
+class _Lazy(Generic[_T]):
+    """A value made on first read, once."""
+
+    __slots__ = ("_make", "_value")
+
+    def __init__(self, make: Callable[[], _T]) -> None:
+        self._make: Callable[[], _T] | None = make
+        self._value: _T | None = None
+
+    def get(self) -> _T:
+        if self._make is not None:
+            self._value, self._make = self._make(), None
+        return self._value  # type: ignore[return-value]
+
+
 @dataclass(frozen=True, slots=True)
 class TickRecord:
-    """What one tick decided and the state it left: logged, published, asserted."""
+    """What one tick decided and the state it left: logged, published, asserted.
+
+    ``state`` is built on first read from what the tick left (taken at the tick): a
+    simulation that never reads it does not pay for the model (issue 14).
+    """
 
     tick: int
     time: datetime
     urgent: bool
     decisions: tuple[Decision, ...]
-    state: DmsState
+    lazy_state: _Lazy[DmsState] = field(repr=False, compare=False)
+    lazy_motivation: _Lazy[MotivationSnapshot] = field(repr=False, compare=False)
+    activity: str | None = None
+    """``state.activity.name``: the current activity (running or paused), if any."""
+
+    @property
+    def state(self) -> DmsState:
+        return self.lazy_state.get()
+
+    @property
+    def motivation(self) -> MotivationSnapshot:
+        """``state.motivation`` alone (cheaper than the whole state)."""
+        return self.lazy_motivation.get()
 
 
 @dataclass
@@ -214,7 +246,7 @@ class Controller:
         self._user: UserPerception | None = None
         self._requests: list[_Asked] = []
         self._touches: list[tuple[str, str]] = []
-        self._state: DmsState | None = None
+        self._lazy_state: _Lazy[DmsState] | None = None
         self._robot_blocked = False
         self._unknown_since: datetime | None = None
         self._probe_at: datetime | None = None
@@ -267,9 +299,13 @@ class Controller:
         if self._session is not None and self._session.account is not None:
             with guard("metrics"):  # after the sends of this tick: see SessionAccount.on_tick
                 self._session.account.on_tick(now, self.deps.expression.pending)
-        state = self._state = self.build_state(now)
+        state, motivation = self._state_of(now)
+        self._lazy_state = state
         self.counters.decisions += len(self._decisions)
-        return TickRecord(self._tick, now, urgent, tuple(self._decisions), state)
+        current = self.current.name if self.current is not None else None
+        return TickRecord(
+            self._tick, now, urgent, tuple(self._decisions), state, motivation, current
+        )
 
     def shutdown(self, now: datetime) -> TickRecord:
         """Stop what runs (SIGINT/SIGTERM): cancel the activity and any suspended one."""
@@ -286,8 +322,9 @@ class Controller:
         if self._session is not None:
             with self._barrier.step("shutdown", self._session.user_id):
                 self._end_session(now)
-        state = self._state = self.build_state(now)
-        return TickRecord(self._tick, now, False, tuple(self._decisions), state)
+        state, motivation = self._state_of(now)
+        self._lazy_state = state
+        return TickRecord(self._tick, now, False, tuple(self._decisions), state, motivation)
 
     # ------------------------------------------------------------------ step 1
 
@@ -1184,49 +1221,66 @@ class Controller:
         top = sorted(means, key=lambda name: -means[name])[:3]
         return [PreferenceWhy(activity=name, score=round(means[name], 3)) for name in top]
 
-    def _activity_state(self, running: Running | None) -> ActivityState | None:
+    def _activity_state(self, running: Running | None) -> dict[str, str] | None:
+        """The fields of ActivityState, taken now (the active path moves on)."""
         if running is None:
             return None
         manager = self.managers[running.manager]
         activity = manager.activity
-        return ActivityState(
-            name=running.name,
-            manager=running.manager.value,
-            status="paused" if running.paused else "running",
-            state=activity.state_path if activity is not None else "",
-        )
+        return {
+            "name": running.name,
+            "manager": running.manager.value,
+            "status": "paused" if running.paused else "running",
+            "state": activity.state_path if activity is not None else "",
+        }
 
     def build_state(self, now: datetime) -> DmsState:
         """The DmsState for ``now`` from what the controller holds."""
-        snapshot = self._motivation
-        motivation = (
-            MotivationSnapshot(**self.deps.motivation.snapshot(snapshot))
+        return self._state_of(now)[0].get()
+
+    def _state_of(self, now: datetime) -> tuple[_Lazy[DmsState], _Lazy[MotivationSnapshot]]:
+        """DmsState for ``now``, and its motivation part alone: what they are made of is
+        taken now, since the controller moves on; the models are made on first read."""
+        model, snapshot = self.deps.motivation, self._motivation
+        motivation = _Lazy(
+            (lambda: MotivationSnapshot(**model.snapshot(snapshot)))
             if snapshot is not None
-            else MotivationSnapshot(dominant=None, drives={}, motivations={}, wellbeing=100.0)
+            else (
+                lambda: MotivationSnapshot(
+                    dominant=None, drives={}, motivations={}, wellbeing=100.0
+                )
+            )
         )
         session = self._session
-        user = (
-            UserState(id=session.user_id, ready=self._ready_user() == session.user_id)
-            if session is not None
-            else None
-        )
-        return DmsState(
-            robot=self.robot_id,
-            tick=self._tick,
-            time=iso(now),
-            mode=session.mode if session is not None else "motivation",
-            user=user,
-            activity=self._activity_state(self.current),
-            suspended=self._activity_state(self.suspended),
-            motivation=motivation,
-            inputs=dict(self._snapshot.status) if self._snapshot else {},
-            robot_link="offline" if self.deps.expression.robot_offline else "ok",
-        )
+        user_id = session.user_id if session is not None else None
+        ready = user_id is not None and self._ready_user() == user_id
+        robot, tick = self.robot_id, self._tick
+        mode: Mode = session.mode if session is not None else "motivation"
+        activity = self._activity_state(self.current)
+        suspended = self._activity_state(self.suspended)
+        inputs = self._snapshot.status if self._snapshot else {}
+        offline = self.deps.expression.robot_offline
+
+        def make() -> DmsState:
+            return DmsState(
+                robot=robot,
+                tick=tick,
+                time=iso(now),
+                mode=mode,
+                user=UserState(id=user_id, ready=ready) if user_id is not None else None,
+                activity=ActivityState(**activity) if activity is not None else None,
+                suspended=ActivityState(**suspended) if suspended is not None else None,
+                motivation=motivation.get(),
+                inputs=dict(inputs),
+                robot_link="offline" if offline else "ok",
+            )
+
+        return _Lazy(make), motivation
 
     @property
     def state(self) -> DmsState | None:
         """The state after the last tick."""
-        return self._state
+        return self._lazy_state.get() if self._lazy_state is not None else None
 
     @property
     def running_activity(self) -> Any:

@@ -138,19 +138,20 @@ class _Tracker:
         self._span_start = 0.0
 
     def on_tick(self, t: float, record: TickRecord) -> None:
-        state = record.state
+        # The motivation part and the activity's name only: the whole DmsState is not
+        # built (a sixth of a tick).
         if self.last_t is not None:
             dt = t - self.last_t
             if self.last_activity is not None and dt > 0:
                 self._account(self.last_activity, self.last_t, t)
             if self.last_wellbeing is not None:
                 self.wellbeing_area += self.last_wellbeing * dt
-        motivation = state.motivation
+        motivation = record.motivation
         for name, value in motivation.drives.items():
             if value > self.drives_max.get(name, float("-inf")):
                 self.drives_max[name] = value
         self.last_wellbeing = motivation.wellbeing
-        activity = state.activity.name if state.activity is not None else None
+        activity = record.activity
         if activity != self.last_activity:
             if self.last_activity is not None:
                 self.spans.append((self.last_activity, self._span_start, t))
