@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+from collections.abc import Callable
 from enum import StrEnum
 from functools import partial
 from pathlib import Path
@@ -16,6 +17,7 @@ from activities.errors import BehaviorError
 from activities.library import BehaviorLibrary, decision_problems
 from activities.spec import schema_text
 from activities.stepper import BehaviorRun, Step, parse_input
+from dms.kernel.ports import RobotPort
 
 app = typer.Typer(no_args_is_help=True)
 
@@ -80,6 +82,25 @@ def check(
         raise typer.Exit(1)
 
 
+RobotFactory = Callable[[int], RobotPort]
+"""Makes the robot ``step`` and ``run`` drive, from the run's seed."""
+
+_robot_factory: list[RobotFactory] = []
+
+
+def use_robot(factory: RobotFactory) -> None:
+    """Wire the robot ``step`` and ``run`` drive: the composition root (dms/cli.py) passes
+    the simulated Mini, so that activities never import ``sim``."""
+    _robot_factory[:] = [factory]
+
+
+def _robot(seed: int) -> RobotPort:
+    if not _robot_factory:
+        typer.echo("no robot wired: run behaviors through `dms behavior`", err=True)
+        raise typer.Exit(2)
+    return _robot_factory[0](seed)
+
+
 @app.command()
 def show(
     file: Annotated[Path, typer.Argument(help="A behavior file.")],
@@ -105,7 +126,9 @@ def step(
     ``touch:PART`` to touch the robot; ``q`` stops. At the end of input it runs on.
     """
     library, spec = BehaviorLibrary.for_file(file)
-    run = BehaviorRun(library, spec, _user(user), {"text": text} if text else {}, seed)
+    run = BehaviorRun(
+        library, spec, _robot(seed), _user(user), {"text": text} if text else {}, seed
+    )
     _print(run.begin())
     interactive = True
     while not run.activity.finished:
@@ -149,7 +172,9 @@ def run_command(
 ) -> None:
     """Run the behavior to its end on the simulated robot and a virtual clock."""
     library, spec = BehaviorLibrary.for_file(file)
-    run = BehaviorRun(library, spec, _user(user), {"text": text} if text else {}, seed)
+    run = BehaviorRun(
+        library, spec, _robot(seed), _user(user), {"text": text} if text else {}, seed
+    )
     steps: list[Step] = []
     activity = run.run(steps.append if as_json else _print, answer or [], max_s)
     result = activity.result

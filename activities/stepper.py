@@ -1,9 +1,10 @@
 """Running one behavior on the simulated Mini and a virtual clock (``dms behavior step|run``).
 
 :class:`BehaviorRun` ticks an activity at 2 Hz on a :class:`~dms.kernel.clock.VirtualClock`
-over a :class:`~sim.robot.SimRobot`, and reports each state entered with the
-userdata and the robot commands since the last report, as ROS Commander lets its user
-step through a behavior one node at a time.
+over the robot it is given (``dms behavior`` passes the simulated Mini: the composition
+root, dms/cli.py, wires it; activities never import ``sim``), and reports each state
+entered with the userdata and the robot commands since the last report, as ROS
+Commander lets its user step through a behavior one node at a time.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from activities.spec import BehaviorSpec
 from dms.kernel.clock import VirtualClock
 from dms.kernel.expression import ExpressionArbiter
 from dms.kernel.messages import RobotCommand, ScreenChoice, Speech, Touch
+from dms.kernel.ports import RobotPort
 
 TICK_S = 0.5
 
@@ -59,21 +61,20 @@ def parse_input(line: str) -> Event | None:
 
 
 class BehaviorRun:
-    """One behavior on the simulated robot, advanced state by state."""
+    """One behavior on the given robot (the simulated Mini), advanced state by state."""
 
     def __init__(
         self,
         library: BehaviorLibrary,
         spec: BehaviorSpec,
+        robot: RobotPort,
         user: Mapping[str, Any] | None = None,
         args: Mapping[str, Any] | None = None,
         seed: int = 0,
     ) -> None:
-        from sim.robot import SimRobot
-
         self.clock = VirtualClock()
         self.start = self.clock.now()
-        self.robot = SimRobot(rng_seed=seed)
+        self.robot = robot
         self.commands: list[RobotCommand] = []
         self.expression = ExpressionArbiter(self.robot, self.commands.append)
         self.profile: dict[str, Any] = dict(user or {})

@@ -14,12 +14,14 @@ from typing import Annotated
 import typer
 
 from activities.cli import app as behavior_app
+from activities.cli import use_robot
 from agenda.cli import app as agenda_app
 from dms.kernel.errors import DmsError
+from dms.kernel.ports import RobotPort
 from dms.rules.cli import app as rules_app
 from dms.secure_cli import app as secure_app
+from memory.cli import DbOption, first_line, upgrade_profiles
 from memory.cli import app as users_app
-from memory.cli import db_app
 from memory.sessions_cli import app as sessions_app
 from motivation.cli import app as motivation_app
 from sim.cli import app as sim_app
@@ -32,6 +34,46 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     add_completion=False,
 )
+
+
+db_app = typer.Typer(no_args_is_help=True)
+
+
+@db_app.callback()
+def _db() -> None:
+    """Database schema migrations (a group, even with one command)."""
+
+
+@db_app.command("upgrade")
+def upgrade(db: DbOption = None) -> None:
+    """Bring the database's schema (profiles and agenda) to the newest version.
+
+    Each package owns its migrations; the composition root runs them all, in order.
+    """
+    from sqlalchemy.exc import SQLAlchemyError
+
+    from agenda import migrations as agenda_migrations
+    from memory.db import default_url
+    from memory.errors import ProfileError
+
+    url = db or default_url()
+    for line in upgrade_profiles(url):
+        typer.echo(line)
+    try:
+        agenda_migrations.upgrade(url)
+    except (SQLAlchemyError, ImportError, OSError) as error:
+        raise ProfileError(f"cannot upgrade the agenda in {url}: {first_line(error)}") from None
+    typer.echo("agenda: at head")
+
+
+def _simulated_robot(seed: int) -> RobotPort:
+    """The robot ``dms behavior step|run`` drives: the simulated Mini (imported when used)."""
+    from sim.robot import SimRobot
+
+    return SimRobot(rng_seed=seed)
+
+
+use_robot(_simulated_robot)
 app.add_typer(rules_app, name="rules", help="Check and evaluate DMSL rule files.")
 app.add_typer(users_app, name="users", help="List, show, export and erase user profiles.")
 app.add_typer(db_app, name="db", help="Database schema migrations.")

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterator
-from contextlib import contextmanager, suppress
+from contextlib import contextmanager
 from datetime import UTC, datetime
 from typing import Annotated
 
@@ -25,33 +25,14 @@ from memory.store import ProfileStore
 
 app = typer.Typer(no_args_is_help=True)
 
-db_app = typer.Typer(no_args_is_help=True)
-
-
-@db_app.callback()
-def _db() -> None:
-    """Database schema migrations (a group, even with one command)."""
-
-
 DbOption = Annotated[
     str | None, typer.Option("--db", help="SQLAlchemy database URL (default: the daemon's).")
 ]
 UserArgument = Annotated[str, typer.Argument(help="The user id.")]
 
 
-def _load_user_data_parts() -> None:
-    """Import the packages that keep more about users in the same database.
-
-    The agenda registers its items and log with the store on import, so that export
-    and erase cover them; memory does not depend on it otherwise.
-    """
-    with suppress(ImportError):  # an install without the agenda package has none
-        import agenda.service  # noqa: F401
-
-
 @contextmanager
 def _store(db: str | None) -> Iterator[ProfileStore]:
-    _load_user_data_parts()
     store = ProfileStore(db or default_url())
     try:
         yield store
@@ -124,10 +105,11 @@ def erase_user(user_id: UserArgument, db: DbOption = None) -> None:
     typer.echo(f"erased {user_id}")
 
 
-@db_app.command("upgrade")
-def upgrade(db: DbOption = None) -> None:
-    """Bring the database's schema (profiles and agenda) to the newest version."""
-    url = db or default_url()
+def upgrade_profiles(url: str) -> list[str]:
+    """Bring the profile store's schema in ``url`` to the newest version; say what was done.
+
+    ``dms db upgrade`` (the composition root, dms/cli.py) runs this, then the agenda's own.
+    """
     try:
         engine = make_engine(url)
         try:
@@ -140,22 +122,14 @@ def upgrade(db: DbOption = None) -> None:
         finally:
             engine.dispose()
     except (SQLAlchemyError, ImportError, OSError) as error:
-        raise ProfileError(f"cannot upgrade {url}: {_first_line(error)}") from None
-    typer.echo(f"profiles: {before or 'empty'} -> {after}")
+        raise ProfileError(f"cannot upgrade {url}: {first_line(error)}") from None
+    said = [f"profiles: {before or 'empty'} -> {after}"]
     if recreated:
-        typer.echo(f"profiles: recreated the missing table(s) {', '.join(recreated)}, empty")
-    try:
-        from agenda import migrations as agenda_migrations
-    except ImportError:  # an install without the agenda package
-        return
-    try:
-        agenda_migrations.upgrade(url)
-    except (SQLAlchemyError, ImportError, OSError) as error:
-        raise ProfileError(f"cannot upgrade the agenda in {url}: {_first_line(error)}") from None
-    typer.echo("agenda: at head")
+        said.append(f"profiles: recreated the missing table(s) {', '.join(recreated)}, empty")
+    return said
 
 
-def _first_line(error: BaseException) -> str:
+def first_line(error: BaseException) -> str:
     lines = str(getattr(error, "orig", None) or error).strip().splitlines()
     return lines[0] if lines else type(error).__name__
 

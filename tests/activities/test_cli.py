@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
+import dms.cli  # noqa: F401  (the composition root wires the simulated robot into `behavior`)
 from activities import BehaviorError
 from activities.cli import app
 from activities.library import BEHAVIORS_DIR

@@ -8,8 +8,8 @@ import pytest
 from sqlalchemy import text
 from typer.testing import CliRunner
 
+from dms.cli import db_app
 from memory import ProfileStore, SchemaOutOfDate, migrations
-from memory.cli import db_app
 from memory.db import make_engine
 from tests.memory.conftest import NOW
 
