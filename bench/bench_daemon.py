@@ -75,8 +75,10 @@ def bench_tick_cost(ticks: int) -> dict[str, Any]:
             )
             now = clock.advance(0.5)
             t0 = time.perf_counter()
-            stack.controller.tick(now, clock.monotonic())
+            # with the DmsState the daemon publishes (built on first read since issue 14)
+            state = stack.controller.tick(now, clock.monotonic()).state
             costs.append(time.perf_counter() - t0)
+            assert state.tick == i + 1
         stack.close()
     return {
         "ticks": ticks,

@@ -105,6 +105,9 @@ def apply(drive: float, change: float) -> float:
 
 def evolve(drive: float, a: float, b: float, peak_s: float, t0: float, t1: float) -> float:
     """The drive at t1, exactly, from its value at t0 under constant inputs."""
+    turns = sign_changes(a, b, peak_s, t0, t1)
+    if not turns:  # a tick's half second almost always: one piece, as ``pieces`` gives
+        return apply(drive, signed(integral(a, b, peak_s, t0, t1), a, b, peak_s, t0, t1))
     for change in pieces(a, b, peak_s, t0, t1):
         drive = apply(drive, change)
     return drive

@@ -94,6 +94,8 @@ class SimulatedUser:
         self.last_activity: str | None = None
         self._activity_serial = 0
         self._wants_stop: str | None = None
+        self._perceived: tuple[tuple[str, bool, float] | None, UserPerception] | None = None
+        """The last perception and what it was made of: sent again while that holds."""
         self._question: _Question | None = None
         self._queue: list[_Pending] = []
         self._order = itertools.count()
@@ -125,12 +127,19 @@ class SimulatedUser:
 
     def perception(self) -> UserPerception:
         """What a perception module publishes about this user now."""
-        if not self.present:
-            return UserPerception(present=False, user_id=None, ready=False, engagement=None)
-        engagement = self.persona.liking(self.activity) if self.activity else 0.7
-        return UserPerception(
-            present=True, user_id=self.user_id, ready=self.ready, engagement=round(engagement, 2)
+        key: tuple[str, bool, float] | None = None
+        if self.present:
+            engagement = self.persona.liking(self.activity) if self.activity else 0.7
+            key = (self.user_id, self.ready, round(engagement, 2))
+        if self._perceived is not None and self._perceived[0] == key:
+            return self._perceived[1]  # a frozen message: built once, not every tick
+        message = (
+            UserPerception(present=False, user_id=None, ready=False, engagement=None)
+            if key is None
+            else UserPerception(present=True, user_id=key[0], ready=key[1], engagement=key[2])
         )
+        self._perceived = (key, message)
+        return message
 
     # ------------------------------------------------------------ the queue
 
