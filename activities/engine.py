@@ -361,13 +361,11 @@ class Node:
         return any(child.deliver(event) for child in self.active_children())
 
     def active_path(self) -> str:
-        active = [child for child in self.active_children() if child.status is Status.RUNNING]
-        if not active:
-            return ""
         parts = []
-        for child in active:
-            below = child.active_path()
-            parts.append(f"{child.name}/{below}" if below else child.name)
+        for child in self.active_children():
+            if child.status is Status.RUNNING:
+                below = child.active_path()
+                parts.append(f"{child.name}/{below}" if below else child.name)
         return ",".join(parts)
 
     def describe(self) -> dict[str, Any]:

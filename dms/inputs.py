@@ -71,6 +71,9 @@ def _first_error(error: ValidationError) -> str:
     return f"{where}: {message}{more}"
 
 
+_EVENT_KEYS = frozenset(keys.EVENT_INPUTS)
+
+
 @dataclass(slots=True)
 class _Slot:
     value: BaseModel | None = None
@@ -185,15 +188,20 @@ class InputBoard:
             status: dict[str, InputStatus] = {}
             values: dict[str, BaseModel] = {}
             for key, slot in self._slots.items():
-                if key in keys.EVENT_INPUTS and not slot.token_seen and slot.value is None:
-                    continue  # an event input nobody has declared or used: not worth a line
-                status[key] = self._status(key, slot, monotonic_now)
-                if key in keys.STATE_INPUTS and status[key] == "ok" and slot.value is not None:
+                if key in _EVENT_KEYS:
+                    if not slot.token_seen and slot.value is None:
+                        continue  # an event input nobody has declared or used: not worth a line
+                    status[key] = "missing" if slot.token_seen and not slot.token_alive else "ok"
+                    continue
+                state = status[key] = self._status(key, slot, monotonic_now)
+                if state == "ok" and slot.value is not None:  # a state input (INPUT_KEYS)
                     values[key] = slot.value
-            events = tuple(
-                event for event in self._events if status.get(event.key, "ok") != "missing"
-            )
-            self._events.clear()
+            events: tuple[InputEvent, ...] = ()
+            if self._events:
+                events = tuple(
+                    event for event in self._events if status.get(event.key, "ok") != "missing"
+                )
+                self._events.clear()
             robot = dict(self._robot_params) if keys.PARAMS_ROBOT in values else {}
             env = dict(self._env_params) if keys.PARAMS_ENV in values else {}
         return InputSnapshot(values, status, events, robot, env)
