@@ -21,11 +21,12 @@ run: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
-## lint: ruff and mypy
+## lint: ruff, mypy and the import floors (docs/architecture.md)
 lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy dms managers activities motivation memory agenda sim
+	$(BIN)/lint-imports
 
 ## bench: every benchmark, JSON on stdout
 bench: $(STAMP)

@@ -32,7 +32,7 @@ from zoneinfo import ZoneInfo
 
 import numpy as np
 
-from motivation import MotivationModel, MotivationState, simulate
+from motivation import MotivationModel, MotivationState, advance, simulate
 
 START = datetime(2026, 11, 23, 0, 0, tzinfo=UTC)
 TICK_S = 0.5
@@ -84,7 +84,7 @@ def main() -> None:
     step_us = [d * 1e6 for d in step_durations]
 
     advance_s = best_of(
-        args.repeat, lambda: model.advance(state, seconds, nothing, None, START, TICK_S)
+        args.repeat, lambda: advance(model, state, seconds, nothing, None, START, TICK_S)
     )
     follow_s = best_of(
         args.repeat,

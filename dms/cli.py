@@ -18,7 +18,7 @@ from activities.cli import use_robot
 from agenda.cli import app as agenda_app
 from dms.kernel.errors import DmsError
 from dms.kernel.ports import RobotPort
-from dms.rules.cli import app as rules_app
+from dms.rules_cli import app as rules_app
 from dms.secure_cli import app as secure_app
 from memory.cli import DbOption, first_line, upgrade_profiles
 from memory.cli import app as users_app

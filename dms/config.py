@@ -6,7 +6,6 @@ the file, the field and what was wrong (:class:`dms.kernel.errors.ConfigError`).
 
 from __future__ import annotations
 
-import tomllib
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Literal
@@ -15,6 +14,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from dms.kernel.errors import ConfigError
 from dms.kernel.keys import INPUT_KEYS, ROBOT_ID_RE
+from dms.kernel.tomlfile import read_toml
 
 Fraction = float
 
@@ -53,9 +53,7 @@ _RATE_CAP_PER_S: dict[str, float | None] = {
 
 class InputSettings(_Section):
     stale_after_s: dict[str, float | None] = Field(default_factory=lambda: _STALE_AFTER_S.copy())
-    rate_cap_per_s: dict[str, float | None] = Field(
-        default_factory=lambda: _RATE_CAP_PER_S.copy()
-    )
+    rate_cap_per_s: dict[str, float | None] = Field(default_factory=lambda: _RATE_CAP_PER_S.copy())
     """Messages a second admitted per input key (None: no cap); the rest are dropped and
     counted, and the counts reported on ``dms/errors`` once a second."""
 
@@ -161,16 +159,6 @@ def _describe(error: ValidationError, where: str) -> str:
     field = ".".join(str(part) for part in first["loc"]) or "(top level)"
     more = f" (and {error.error_count() - 1} more)" if error.error_count() > 1 else ""
     return f"{where}: {field}: {first['msg']}{more}"
-
-
-def read_toml(path: Path) -> dict[str, Any]:
-    """The tables of a TOML file; ConfigError with one line if it cannot be read or parsed."""
-    try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as error:
-        raise ConfigError(f"{path}: cannot read: {error.strerror}") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
-        raise ConfigError(f"{path}: not valid TOML: {error}") from None
 
 
 def load_config(

@@ -68,9 +68,9 @@ from dms.kernel.messages import (
     UserState,
     Why,
 )
+from dms.kernel.session_metrics import SessionAccount
 from dms.profiles import ProfileService
 from dms.rules import LiveRules
-from dms.session_metrics import SessionAccount
 from managers import Manager, ManagerReply, ManagerStatus, make_managers
 from memory import ActivityChooser, Profile, Question, QuestionBank
 from motivation import MotivationModel, MotivationState, Percepts, Stimuli, simulate

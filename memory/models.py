@@ -113,7 +113,7 @@ class SessionRow(Base):
     started_at: Mapped[datetime] = mapped_column(UtcDateTime())
     ended_at: Mapped[datetime | None] = mapped_column(UtcDateTime())
     metrics: Mapped[dict[str, Any] | None] = mapped_column(JSON)
-    """The session's Table 4 metrics (``dms.session_metrics``), set when it ends."""
+    """The session's Table 4 metrics (``dms.kernel.session_metrics``), set when it ends."""
 
 
 class ActivityRunRow(Base):

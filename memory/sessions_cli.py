@@ -1,6 +1,6 @@
 """``dms sessions list|export``: the Table 4 metrics of each real session.
 
-The daemon stores each session's metrics (``dms.session_metrics``) when the session
+The daemon stores each session's metrics (``dms.kernel.session_metrics``) when the session
 ends; these commands read them back from its database, so that a deployment yields
 its own Table 4 beside the paper's and the simulator's (the columns are those of
 ``dms sim study --out``'s ``sessions.csv``). They only read: a database file that does
@@ -21,7 +21,7 @@ import typer
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import ArgumentError
 
-from dms.session_metrics import METRIC_KEYS
+from dms.kernel.session_metrics import METRIC_KEYS
 from memory.db import as_url, default_url
 from memory.errors import ProfileError
 from memory.store import ProfileStore

@@ -458,7 +458,7 @@ class ProfileStore:
         self, session_id: int, now: datetime, metrics: dict[str, Any] | None = None
     ) -> None:
         """Close the session (the user left, or the daemon stops), with its Table 4
-        ``metrics`` when given (``dms.session_metrics``: names to numbers or None)."""
+        ``metrics`` when given (``dms.kernel.session_metrics``: names to numbers or None)."""
         _check_time("now", now)
         if metrics is not None:
             _check_metrics(metrics)

@@ -14,7 +14,7 @@ from motivation.config import (
 )
 from motivation.model import NO_DOMINANT, MotivationModel, MotivationState
 from motivation.stimuli import Percepts, Stimuli
-from motivation.trajectory import Run, simulate
+from motivation.trajectory import Run, advance, simulate
 
 __all__ = [
     "DEFAULT_DRIVES",
@@ -28,6 +28,7 @@ __all__ = [
     "Run",
     "Stimuli",
     "StimulusConfig",
+    "advance",
     "load_config",
     "simulate",
 ]

@@ -19,8 +19,8 @@ from typing import Annotated, Any
 import numpy as np
 import typer
 
-from dms.config import read_toml
 from dms.kernel.errors import ConfigError
+from dms.kernel.tomlfile import read_toml
 from motivation.config import MotivationConfig, MotivationConfigError, load_config
 
 app = typer.Typer(no_args_is_help=True)

@@ -2,7 +2,7 @@
 
 Pure: every method takes the state and ``now`` and returns a new state; nothing
 reads the clock. The controller calls ``step`` once a tick; simulations and the
-plot jump ahead with ``advance`` and ``simulate`` (see ``motivation.trajectory``),
+plot jump ahead with ``motivation.trajectory``'s ``advance`` and ``simulate``,
 which give the same numbers as stepping at the tick rate.
 
 - Drive ``D_i`` in [0, 100] grows at its daily-modulated rate and falls while a
@@ -207,26 +207,6 @@ class MotivationModel:
         levels = stimuli.levels.tolist()
         dominant = self._next_dominant(state.dominant, evolved, levels)
         return MotivationState(np.array(evolved, dtype=np.float64), stimuli.levels, dominant)
-
-    def advance(
-        self,
-        state: MotivationState,
-        duration: float,
-        stimuli: Stimuli,
-        running: str | None,
-        now: datetime,
-        tick_s: float = 0.5,
-    ) -> MotivationState:
-        """Jump ``duration`` seconds from ``now`` with constant inputs.
-
-        Equals calling ``step`` every ``tick_s`` (the dominant motivation is checked at
-        each tick, as the daemon does), in closed form and numpy: a month takes about a
-        second at 0.5 s ticks.
-        """
-        from motivation.trajectory import simulate
-
-        run = simulate(self, state, now, duration, stimuli, running=running, tick_s=tick_s, every=0)
-        return run.final
 
     # ------------------------------------------------------------------ reading a state
 

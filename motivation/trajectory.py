@@ -190,6 +190,25 @@ def _same_offset(
     return width
 
 
+def advance(
+    model: MotivationModel,
+    state: MotivationState,
+    duration: float,
+    stimuli: Stimuli,
+    running: str | None,
+    now: datetime,
+    tick_s: float = 0.5,
+) -> MotivationState:
+    """Jump ``duration`` seconds from ``now`` with constant inputs.
+
+    Equals calling ``model.step`` every ``tick_s`` (the dominant motivation is checked at
+    each tick, as the daemon does), in closed form and numpy: a month takes about a
+    second at 0.5 s ticks.
+    """
+    run = simulate(model, state, now, duration, stimuli, running=running, tick_s=tick_s, every=0)
+    return run.final
+
+
 def simulate(
     model: MotivationModel,
     state: MotivationState,

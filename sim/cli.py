@@ -76,7 +76,8 @@ def _design(config: Path | None, rules: Path | None) -> tuple[Settings, dict[str
     """The settings of ``--config`` (as ``dms run --config`` reads them) with ``--rules``
     in place of its rule files, never its database (a simulation has its own), and the
     TOML as read (to tell which settings the file gives)."""
-    from dms.config import Settings, load_config, read_toml
+    from dms.config import Settings, load_config
+    from dms.kernel.tomlfile import read_toml
 
     settings = load_config(config) if config is not None else Settings()
     raw = read_toml(config) if config is not None else {}

@@ -3,15 +3,27 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from sim.errors import SimError
 
-if TYPE_CHECKING:
-    from sim.longterm import LongtermResult
+
+class LongtermRun(Protocol):
+    """What the plots read of a long-term run (``sim.longterm.LongtermResult`` has it).
+
+    A protocol, so that ``sim.longterm`` imports this module and not the other way round.
+    """
+
+    days: int
+    users: list[str]
+    activity_seconds: dict[str, float]
+    activity_seconds_by_hour: dict[str, dict[str, float]]
+    samples: list[tuple[float, dict[str, float], float]]
+    spans: list[tuple[str, float, float]]
+    presence: list[tuple[int, float, float]]
 
 
-def write_plots(result: LongtermResult, out: Path) -> list[Path]:
+def write_plots(result: LongtermRun, out: Path) -> list[Path]:
     """Write drives.png, timeline.png and by_hour.png into ``out``; return their paths."""
     import matplotlib
 

@@ -1,4 +1,4 @@
-"""The per-session Table 4 accounting (``dms.session_metrics``), and its storage."""
+"""The per-session Table 4 accounting (``dms.kernel.session_metrics``), and its storage."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 
 from dms.kernel.expression import CommandHandle, CommandStatus, Priority
 from dms.kernel.messages import Decision
-from dms.session_metrics import METRIC_KEYS, SessionAccount
+from dms.kernel.session_metrics import METRIC_KEYS, SessionAccount
 from memory import ProfileStore
 from memory.errors import ProfileError
 

@@ -18,7 +18,7 @@ from typing import Any
 
 import pytest
 
-from dms.session_metrics import METRIC_KEYS
+from dms.kernel.session_metrics import METRIC_KEYS
 from tests.integration.harness import Collector, put, running_daemon
 
 pytestmark = pytest.mark.integration

@@ -18,6 +18,7 @@ from motivation import (
     MotivationState,
     Percepts,
     Stimuli,
+    advance,
     load_config,
     simulate,
 )
@@ -77,9 +78,9 @@ def test_a_user_present_and_engaged_calms_loneliness() -> None:
     state = MotivationState(np.array([30.0, 80.0, 30.0]), np.zeros(3))
     engaged = model.stimuli(Percepts(user_present=True, engagement=1.0))
     assert engaged.levels[social] == 1.0
-    after = model.advance(state, 1800, engaged, "quiz", NOON)
+    after = advance(model, state, 1800, engaged, "quiz", NOON)
     assert after.drives[social] < state.drives[social] - 20  # 1 point a minute off
-    alone = model.advance(state, 1800, model.no_stimuli(), "quiz", NOON)
+    alone = advance(model, state, 1800, model.no_stimuli(), "quiz", NOON)
     assert alone.drives[social] > state.drives[social]
     # the stimulus itself raises the motivation to seek company: M = D + alpha * w
     motivations = model.motivations(state.drives, engaged.levels)
@@ -151,8 +152,8 @@ def test_a_missing_input_contributes_nothing(percepts: Percepts) -> None:
     assert np.all(inputs.relief == 0.0)
     assert np.all(inputs.instant == 0.0)
     state = MotivationState(np.array([50.0, 50.0, 50.0]), np.zeros(3))
-    with_nothing = model.advance(state, 3600, inputs, None, NOON)
-    no_stimuli = model.advance(state, 3600, model.no_stimuli(), None, NOON)
+    with_nothing = advance(model, state, 3600, inputs, None, NOON)
+    no_stimuli = advance(model, state, 3600, model.no_stimuli(), None, NOON)
     np.testing.assert_array_equal(with_nothing.drives, no_stimuli.drives)
 
 
@@ -179,8 +180,8 @@ def test_caresses_excite_social_and_take_touch_relief_off() -> None:
     growth = model.step(state, 0.5, model.no_stimuli(), None, NOON)
     assert after.drives[social] == pytest.approx(growth.drives[social] - 2 * relief)
     # the relief counts once, not once per tick, in a long run too
-    run = model.advance(state, 60.0, inputs, None, NOON)
-    alone = model.advance(state, 60.0, model.no_stimuli(), None, NOON)
+    run = advance(model, state, 60.0, inputs, None, NOON)
+    alone = advance(model, state, 60.0, model.no_stimuli(), None, NOON)
     assert run.drives[social] == pytest.approx(alone.drives[social] - 2 * relief)
     # and never below 0
     calm = MotivationState(np.array([30.0, 1.0, 30.0]), np.zeros(3))
@@ -191,12 +192,12 @@ def test_behaviors_satisfy_their_drives_and_dormant_drives_rest() -> None:
     model = MotivationModel()
     rest, social, play = (model.names.index(n) for n in ("rest", "social", "play"))
     state = MotivationState(np.array([80.0, 50.0, 50.0]), np.zeros(3))
-    asleep = model.advance(state, 3600, model.no_stimuli(), "sleep", NOON)
+    asleep = advance(model, state, 3600, model.no_stimuli(), "sleep", NOON)
     assert asleep.drives[rest] < state.drives[rest]
     # asleep, the robot gets neither lonely nor bored
     assert asleep.drives[social] == state.drives[social]
     assert asleep.drives[play] == state.drives[play]
-    dancing = model.advance(state, 3600, model.no_stimuli(), "dance", NOON)
+    dancing = advance(model, state, 3600, model.no_stimuli(), "dance", NOON)
     assert dancing.drives[play] < state.drives[play] - 40
     assert dancing.drives[social] > state.drives[social]
 

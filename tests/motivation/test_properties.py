@@ -16,7 +16,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from motivation import MotivationModel, MotivationState, Stimuli, simulate
+from motivation import MotivationModel, MotivationState, Stimuli, advance, simulate
 from motivation.model import NO_DOMINANT
 from tests.motivation.strategies import instants, models, runnings, states, stimuli
 
@@ -130,7 +130,7 @@ def test_advance_and_samples_equal_stepping_every_tick(
     running = data.draw(runnings(model))
     start = data.draw(instants())
     loop = step_loop(model, state, start, duration, inputs, running)
-    final = model.advance(state, duration, inputs, running, start)
+    final = advance(model, state, duration, inputs, running, start)
     assert_same(final, loop[-1] if loop else state)
     run = simulate(model, state, start, duration, inputs, running=running, every=1)
     ticks = int(duration // TICK)

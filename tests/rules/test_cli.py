@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner, Result
 
+from dms import rules_cli
 from dms.kernel.errors import DmsError
-from dms.rules import cli as rules_cli
 
 from .conftest import EXAMPLES
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from dms.rules import cli as rules_cli
+from dms import rules_cli
 from dms.rules import lint_files, parse
 from dms.rules.verifier import activation_warnings
 

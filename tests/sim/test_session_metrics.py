@@ -1,7 +1,7 @@
 """The daemon's own Table 4 agrees with the study's on a simulated session.
 
 The simulator builds the daemon's controller (``sim.harness``), so a simulated session
-is stored with the metrics the controller measured (``dms.session_metrics``). They must
+is stored with the metrics the controller measured (``dms.kernel.session_metrics``). They must
 be what ``sim/study.py`` computes from the outside for the same session, by the same
 definitions: one measure, two vantage points.
 """
