@@ -8,8 +8,9 @@ non-zero exit, never a traceback.
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -26,6 +27,9 @@ from memory.sessions_cli import app as sessions_app
 from motivation.cli import app as motivation_app
 from sim.cli import app as sim_app
 from sim.cli import record_command
+
+if TYPE_CHECKING:
+    from dms.config import Settings
 
 app = typer.Typer(
     name="dms",
@@ -128,7 +132,22 @@ def run(
         robot=robot,
         seed=seed,
     )
-    raise typer.Exit(run_daemon(settings, visitor=visitor, print_decisions=not quiet))
+    raise typer.Exit(
+        run_daemon(
+            settings,
+            visitor=visitor,
+            print_decisions=not quiet,
+            sim_robot=_simulated_robot,
+            start_visitor=_start_visitor,
+        )
+    )
+
+
+def _start_visitor(persona: str, settings: Settings) -> Callable[[], None]:
+    """A simulated visitor beside the daemon (``dms run --visitor``); returns ``stop()``."""
+    from sim.visitor import start_visitor
+
+    return start_visitor(persona, settings)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -27,7 +27,7 @@ from dms.controller import TickRecord
 from dms.inputs import InputRejected, parse_input
 from dms.kernel import keys
 from dms.kernel.clock import Clock, RealClock, Ticker, iso
-from dms.kernel.errors import DmsError
+from dms.kernel.errors import ConfigError, DmsError
 from dms.kernel.ids import InvalidIdentifier, check_identifier, printable
 from dms.kernel.messages import (
     Decision,
@@ -95,7 +95,10 @@ class Daemon:
         print_decisions: bool = True,
         bus: ZenohBus | InMemoryBus | None = None,
         clock: Clock | None = None,
+        sim_robot: Callable[[int], RobotPort] | None = None,
     ) -> None:
+        """``sim_robot`` makes the in-process robot from the seed when ``settings.robot`` is
+        not ``zenoh``: the composition root (dms/cli.py) passes the simulated Mini."""
         self.settings = settings
         self._said: list[str] = []  # what the robot said this tick, printed after the decisions
         self.clock: Clock = clock or RealClock()
@@ -113,10 +116,10 @@ class Daemon:
         if settings.robot == "zenoh":
             self.zenoh_robot = ZenohRobot(self._publish_command)
             robot = self.zenoh_robot
+        elif sim_robot is not None:
+            robot = sim_robot(settings.seed or 0)
         else:
-            from sim.robot import SimRobot
-
-            robot = SimRobot(rng_seed=settings.seed or 0)
+            raise ConfigError(f"robot = {settings.robot!r} needs an in-process robot: use dms run")
         self.stack: Stack = build_stack(
             settings,
             robot,
@@ -341,12 +344,23 @@ class Daemon:
                 self.bus.close()
 
 
-def run_daemon(settings: Settings, visitor: str | None = None, print_decisions: bool = True) -> int:
-    """Run until SIGINT/SIGTERM; return the exit code."""
+def run_daemon(
+    settings: Settings,
+    visitor: str | None = None,
+    print_decisions: bool = True,
+    *,
+    sim_robot: Callable[[int], RobotPort] | None = None,
+    start_visitor: Callable[[str, Settings], Callable[[], None]] | None = None,
+) -> int:
+    """Run until SIGINT/SIGTERM; return the exit code.
+
+    The composition root (dms/cli.py) passes the simulated robot and the visitor starter,
+    so that the daemon does not import ``sim``.
+    """
     logging.basicConfig(
         level=logging.WARNING, format="%(asctime)s %(levelname)s %(name)s: %(message)s"
     )
-    daemon = Daemon(settings, print_decisions=print_decisions)
+    daemon = Daemon(settings, print_decisions=print_decisions, sim_robot=sim_robot)
 
     def on_stop(_signum: int, _frame: FrameType | None) -> None:
         daemon.stop()
@@ -367,8 +381,8 @@ def run_daemon(settings: Settings, visitor: str | None = None, print_decisions: 
             flush=True,
         )
         if visitor is not None:
-            from sim.visitor import start_visitor
-
+            if start_visitor is None:
+                raise ConfigError("--visitor needs the simulator: use dms run")
             stop_visitor = start_visitor(visitor, settings)
         daemon.loop()
     finally:

@@ -46,7 +46,12 @@ def test_the_daemon_decides_by_the_seed_model_until_ready_then_by_the_trained_on
     url = f"sqlite:///{tmp_path / 'dms.db'}"
     favorite = _store_fans(url)
     bus = InMemoryBus()
-    daemon = Daemon(Settings(db=url, seed=1), print_decisions=False, bus=bus)
+    daemon = Daemon(
+        Settings(db=url, seed=1),
+        print_decisions=False,
+        bus=bus,
+        sim_robot=lambda seed: SimRobot(rng_seed=seed),
+    )
     chooser = daemon.stack.chooser
     assert chooser is not None
     try:
