@@ -154,8 +154,8 @@ def build_stack(
         questions = QuestionBank.default()
 
         def user_exists(user_id: str) -> bool:
-            assert store is not None
-            return user_id in store.list_ids()
+            assert store is not None and profiles is not None
+            return profiles.met(user_id) or user_id in store.list_ids()
 
         try:
             agenda = Agenda(url, user_exists=user_exists, background=background_io)

@@ -53,6 +53,7 @@ class ProfileService:
         self.store = store
         self._cache: dict[str, Profile] = {}
         self._cache_lock = threading.Lock()
+        self._met: set[str] = set()
         self.writer = StorageWriter(
             self._apply,
             spool_path or side_file(store.url, "spool"),
@@ -70,12 +71,20 @@ class ProfileService:
         Returns the profile, or meanwhile the cached one (None for a user never loaded);
         the cache is refreshed when the read lands.
         """
+        with self._cache_lock:
+            self._met.add(user_id)
         waiter = Waiter()
         self.writer.submit(Write("get_or_create", (user_id, now)), waiter)
         waiter.wait(wait_s)
         if isinstance(waiter.result, Profile):
             return waiter.result
         return self.cached(user_id)
+
+    def met(self, user_id: str) -> bool:
+        """The robot has met ``user_id`` in this run: their profile exists, or is being
+        written (the agenda accepts items for them before the write lands)."""
+        with self._cache_lock:
+            return user_id in self._met or user_id in self._cache
 
     def cached(self, user_id: str) -> Profile | None:
         with self._cache_lock:

@@ -320,7 +320,6 @@ class ActivityChooser:
             training.join(timeout)
         return training is None or not training.is_alive()
 
-
     def beliefs(self, profile: Profile) -> dict[str, tuple[float, float]]:
         """Per activity, Beta(alpha, beta) of how much the user likes it: the prediction
         as a prior worth :data:`PRIOR_STRENGTH` observations plus the user's evidence."""

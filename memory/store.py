@@ -67,7 +67,6 @@ FAILURES_TO_SWITCH = 3
 COMPLETED_OUTCOMES = frozenset({"completed", "done", "succeeded", "success"})
 
 
-
 def _one_line(error: BaseException) -> str:
     text = str(getattr(error, "orig", None) or error).strip().splitlines()
     return text[0] if text else type(error).__name__
@@ -122,9 +121,7 @@ def _check_metrics(metrics: Any) -> None:
         raise ProfileError(f"metrics: must be a dict (got {metrics!r:.60})")
     for key, value in metrics.items():
         number = isinstance(value, int | float) and not isinstance(value, bool)
-        if not isinstance(key, str) or not (
-            value is None or (number and math.isfinite(value))
-        ):
+        if not isinstance(key, str) or not (value is None or (number and math.isfinite(value))):
             raise ProfileError(f"metrics: {key!r:.40} must be a finite number or null")
 
 

@@ -57,7 +57,12 @@ def test_robot_choices_carry_the_mode_draw_the_preferences_and_the_drives() -> N
 
 
 def test_a_rule_that_decides_is_named_with_its_file_and_line(tmp_path: Path) -> None:
-    rules = 'component ChooseMode [ activate "autonomous" ]\n\ncomponent ChooseEntertainment [\n  if params.user.id = "ann" then activate "bingo"\n]\n'
+    rules = (
+        'component ChooseMode [ activate "autonomous" ]\n\n'
+        "component ChooseEntertainment [\n"
+        '  if params.user.id = "ann" then activate "bingo"\n'
+        "]\n"
+    )
     with _sim(tmp_path, rules) as sim:
         sim.presence = ANN
         sim.feed(keys.PERCEPTION_USER, ANN)

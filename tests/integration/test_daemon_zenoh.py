@@ -145,10 +145,13 @@ def test_a_perception_module_whose_token_disappears_is_missing(tmp_path: Path) -
             states.wait_for(
                 lambda s: s["inputs"].get("perception/user") == "ok" and s["user"] is not None
             )
+            mark = states.mark()  # "missing" before ann came too: look only after the token goes
             token.undeclare()
-            gone = states.wait_for(lambda s: s["inputs"].get("perception/user") == "missing")
+            gone = states.wait_for(
+                lambda s: s["inputs"].get("perception/user") == "missing", start=mark
+            )
             assert gone["user"] == {"id": "ann", "ready": False}, "the user is unknown, not gone"
-            ended = states.wait_for(lambda s: s["user"] is None, timeout=20)
+            ended = states.wait_for(lambda s: s["user"] is None, timeout=20, start=mark)
             assert ended["inputs"]["perception/user"] == "missing"
             kept = _seconds(ended["time"]) - _seconds(gone["time"])
             assert 2.4 <= kept <= 4.0, f"the session outlived its perception {kept:.1f} s"
