@@ -41,8 +41,8 @@ def test_the_readme_client_starts_jokes_and_sees_the_decision(tmp_path: Path) ->
         try:
             for line in client.stdout:
                 lines.append(line)
-                if line.startswith("{"):
-                    decision = json.loads(line)
+                if "{" in line:  # the client prints from two threads: lines may interleave
+                    decision, _ = json.JSONDecoder().raw_decode(line[line.index("{") :])
                     if decision["action"] == "start" and decision["activity"] == "jokes":
                         assert decision["reason"] == "user_request"
                         break
@@ -55,4 +55,4 @@ def test_the_readme_client_starts_jokes_and_sees_the_decision(tmp_path: Path) ->
         finally:
             watchdog.cancel()
             client.kill()
-        assert any(line.startswith("now running:") for line in lines)
+        assert any("now running:" in line for line in lines)
