@@ -8,6 +8,7 @@ import subprocess
 import sys
 import threading
 from pathlib import Path
+from typing import Any
 
 from tests.integration.harness import running_daemon
 
@@ -19,6 +20,16 @@ def readme_client() -> str:
     found = re.search(r"```python\n(import json, zenoh\n.*?)```", text, re.S)
     assert found, "README has no zenoh client"
     return found.group(1)
+
+
+def _decision_in(line: str) -> dict[str, Any] | None:
+    """The decision printed on ``line``: the client prints from two threads, so a decision
+    may share its line with another print."""
+    start = line.find('{"tick"')
+    if start < 0:
+        return None
+    decision, _ = json.JSONDecoder().raw_decode(line[start:])
+    return decision if isinstance(decision, dict) else None
 
 
 def test_the_readme_client_starts_jokes_and_sees_the_decision(tmp_path: Path) -> None:
@@ -41,11 +52,13 @@ def test_the_readme_client_starts_jokes_and_sees_the_decision(tmp_path: Path) ->
         try:
             for line in client.stdout:
                 lines.append(line)
-                if "{" in line:  # the client prints from two threads: lines may interleave
-                    decision, _ = json.JSONDecoder().raw_decode(line[line.index("{") :])
-                    if decision["action"] == "start" and decision["activity"] == "jokes":
-                        assert decision["reason"] == "user_request"
-                        break
+                decision = _decision_in(line)
+                if decision is not None and (decision["action"], decision["activity"]) == (
+                    "start",
+                    "jokes",
+                ):
+                    assert decision["reason"] == "user_request"
+                    break
             else:
                 raise AssertionError("no jokes decision from the client:\n" + "".join(lines))
             client.stdin.write("\n")
