@@ -312,8 +312,7 @@ class Controller:
         self._now = now
         self._decisions = []
         if self.dialog is not None:
-            self.dialog = None
-            self.deps.expression.interrupt_source(DIALOG_SOURCE, now)
+            self._end_dialog(now)
         for running in (self.current, self.suspended):
             if running is not None:
                 with self._barrier.step("shutdown", running.name):
@@ -455,9 +454,13 @@ class Controller:
         wins, the question closes at once (not counted as unanswered)."""
         dialog = self.dialog
         if dialog is not None and dialog.kind in (DialogKind.GENERAL_QUESTION, DialogKind.FEEDBACK):
-            self.dialog = None
-            self._question = None
-            self.deps.expression.interrupt_source(DIALOG_SOURCE, now)
+            self._end_dialog(now)
+
+    def _end_dialog(self, now: datetime) -> None:
+        """Close the open dialog without its answer and silence what it was saying."""
+        self.dialog = None
+        self._question = None
+        self.deps.expression.interrupt_source(DIALOG_SOURCE, now)
 
     def _on_touch(self, touch: Touch, now: datetime) -> None:
         running = self.current
@@ -554,9 +557,8 @@ class Controller:
     def _drop_dialog(self, now: datetime) -> None:
         """After a fault in the dialog step: close the dialog, silence it, go on."""
         self.dialog = None
-        self._question = None
         with self._barrier.step("dialog/close"):
-            self.deps.expression.interrupt_source(DIALOG_SOURCE, now)
+            self._end_dialog(now)
         running = self.current
         if running is not None and running.paused and self.suspended is not running:
             with self._barrier.step("dialog/resume", running.name):
@@ -635,8 +637,7 @@ class Controller:
                     else:
                         self.suspended = None
             if self.dialog is not None:
-                self.dialog = None
-                self.deps.expression.interrupt_source(DIALOG_SOURCE, now)
+                self._end_dialog(now)
             self._end_session(now)
             session = None
         if session is None and ready is not None:

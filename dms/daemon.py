@@ -54,6 +54,14 @@ NOT_SERVED = (
 )
 
 
+ALL_USERS = ("*", "**", "")
+"""The ``<user_id>`` of ``users/<user_id>`` and ``agenda/<user_id>`` that means everyone."""
+
+
+class QueryRefused(DmsError):
+    """A query the daemon answers with an error reply saying why (not a fault)."""
+
+
 def format_decision(decision: Decision) -> str:
     """One console line per decision: time, action, activity, reason, who, why.
 
@@ -195,35 +203,35 @@ class Daemon:
 
     def _query_users(self, key: str, _payload: bytes | None) -> tuple[bool, Any]:
         store = self.stack.store
-        if not self.settings.privacy.serve_profiles:
-            return False, {"error": NOT_SERVED}
+        user_id = self._personal_subject(key, keys.USERS_PREFIX)
         if store is None:
             return False, {"error": "no profile store"}
-        user_id = key[len(keys.USERS_PREFIX) :]
-        try:
-            if user_id in ("*", "**", ""):
-                return True, {"users": store.list_ids()}
-            return True, store.export(check_identifier(user_id, "user id"))
-        except (DmsError, InvalidIdentifier) as error:
-            return False, {"error": str(error)}
+        if user_id in ALL_USERS:
+            return True, {"users": store.list_ids()}
+        return True, store.export(user_id)
 
     def _query_agenda(self, key: str, payload: bytes | None) -> tuple[bool, Any]:
         agenda = self.stack.agenda
-        if not self.settings.privacy.serve_profiles:
-            return False, {"error": NOT_SERVED}
+        user_id = self._personal_subject(key, keys.AGENDA_PREFIX)
         if agenda is None:
             return False, {"error": "no agenda"}
         from agenda.zenoh_api import handle_query
 
-        user_id = key[len(keys.AGENDA_PREFIX) :]
-        if user_id not in ("*", "**", ""):
-            try:
-                user_id = check_identifier(user_id, "user id")
-            except InvalidIdentifier as error:
-                return False, {"error": str(error)}
         # The agenda has its own lock and does its database work off it: holding the
         # daemon's lock here would make the tick wait for the database.
         return handle_query(agenda, user_id, payload, self.clock.now())
+
+    def _personal_subject(self, key: str, prefix: str) -> str:
+        """Whose data a ``users/`` or ``agenda/`` query asks for (``*``: everyone's).
+
+        Raises:
+            QueryRefused: personal data is not served (``[privacy] serve_profiles``).
+            InvalidIdentifier: the key's id breaks the id rule.
+        """
+        if not self.settings.privacy.serve_profiles:
+            raise QueryRefused(NOT_SERVED)
+        user_id = key[len(prefix) :]
+        return user_id if user_id in ALL_USERS else check_identifier(user_id, "user id")
 
     def _guarded(self, key: str, handler: QueryHandler) -> QueryHandler:
         """``handler`` that answers every query: an exception becomes an error reply
@@ -232,6 +240,8 @@ class Daemon:
         def serve(query_key: str, payload: bytes | None) -> tuple[bool, Any]:
             try:
                 return handler(query_key, payload)
+            except (DmsError, InvalidIdentifier) as refused:  # QueryRefused among them
+                return False, {"error": str(refused)}
             except RecursionError:
                 return False, {"error": "payload nested too deeply"}
             except Exception as error:
