@@ -28,8 +28,15 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tests.integration.harness import Collector, DaemonProcess, client_session, put  # noqa: E402
+from tests.integration.harness import (  # noqa: E402
+    Collector,
+    DaemonProcess,
+    client_session,
+    paced,
+    put,
+)
 
+RELOAD = {"action": "reload_rules", "by": "bench"}
 UNCAPPED = "[inputs.rate_cap_per_s]\nrequest = 100000.0\n"
 
 
@@ -44,13 +51,10 @@ def _longest_gap(states: list[dict[str, Any]]) -> float:
 
 def _flood(session: Any, rate: float, seconds: float, stop: threading.Event) -> int:
     """Send ``reload_rules`` requests at ``rate`` for ``seconds`` (or until ``stop``)."""
-    sent, start = 0, time.monotonic()
-    while not stop.is_set() and time.monotonic() - start < seconds:
-        put(session, "request", {"action": "reload_rules", "by": "bench"})
+    sent = 0
+    for request in paced(itertools.repeat(RELOAD, int(rate * seconds)), rate, stop):
+        put(session, "request", request)
         sent += 1
-        ahead = sent / rate - (time.monotonic() - start)
-        if ahead > 0:
-            stop.wait(ahead)
     return sent
 
 

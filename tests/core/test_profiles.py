@@ -9,17 +9,16 @@ from __future__ import annotations
 import json
 import sqlite3
 import time
-import uuid
 from collections.abc import Iterator
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import pytest
-from sqlalchemy import create_engine, text
+from sqlalchemy import text
 
 from dms.profiles import RETRY_EVERY_S, ProfileService
 from memory import ProfileStore
-from tests.memory.conftest import POSTGRES_URL, _postgres_schema_url
+from tests.postgres import POSTGRES_URL, fresh_schema
 
 NOW = datetime(2026, 11, 23, 10, 0, tzinfo=UTC)
 LATER = NOW + timedelta(seconds=RETRY_EVERY_S)
@@ -189,16 +188,8 @@ def test_a_value_the_store_refuses_is_quarantined_not_queued(
 def postgres_url() -> Iterator[str]:
     if not POSTGRES_URL:
         pytest.skip("DMS_TEST_POSTGRES_URL is not set")
-    schema = f"t_{uuid.uuid4().hex[:12]}"
-    admin = create_engine(POSTGRES_URL)
-    with admin.begin() as connection:
-        connection.execute(text(f'CREATE SCHEMA "{schema}"'))
-    try:
-        yield _postgres_schema_url(POSTGRES_URL, schema)
-    finally:
-        with admin.begin() as connection:
-            connection.execute(text(f'DROP SCHEMA "{schema}" CASCADE'))
-        admin.dispose()
+    with fresh_schema() as url:
+        yield url
 
 
 def test_postgres_refusing_a_nul_byte_blocks_no_other_write(

@@ -13,12 +13,15 @@ import socket
 import subprocess
 import sys
 import threading
-from collections.abc import Callable, Iterator
+import time
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import zenoh
+
+T = TypeVar("T")
 
 
 def free_port() -> int:
@@ -200,13 +203,12 @@ def put(session: zenoh.Session, key: str, payload: dict[str, Any] | bytes) -> No
 
 
 def query(
-    session: zenoh.Session, key: str, payload: dict[str, Any] | None = None
+    session: zenoh.Session, key: str, payload: dict[str, Any] | bytes | None = None
 ) -> list[tuple[bool, Any]]:
-    replies = session.get(
-        f"robots/mini/{key}",
-        payload=json.dumps(payload).encode() if payload is not None else None,
-        timeout=10.0,
-    )
+    """Every reply to one query, as (ok, body); a dict payload is sent as JSON, bytes as
+    they are. Zenoh's query timeout is 10 s."""
+    data = json.dumps(payload).encode() if isinstance(payload, dict) else payload
+    replies = session.get(f"robots/mini/{key}", payload=data, timeout=10.0)
     out: list[tuple[bool, Any]] = []
     for reply in replies:
         if reply.ok is not None:
@@ -214,3 +216,14 @@ def query(
         else:
             out.append((False, json.loads(reply.err.payload.to_bytes())))
     return out
+
+
+def paced(items: Iterable[T], rate: float, stop: threading.Event | None = None) -> Iterator[T]:
+    """``items`` at ``rate`` a second, for a sender that floods at a set rate; ends early
+    when ``stop`` is set. (Pacing a sender, not waiting for an outcome.)"""
+    stop = stop or threading.Event()
+    started = time.monotonic()
+    for index, item in enumerate(items):
+        if stop.wait(max(0.0, started + index / rate - time.monotonic())):
+            return
+        yield item

@@ -22,7 +22,7 @@ import re
 import threading
 import time
 from collections import Counter
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -36,7 +36,7 @@ from dms.inputs import InputRejected, parse_input
 from dms.kernel.activity_names import ACTIVITIES
 from dms.kernel.ids import MAX_ID_LENGTH
 from dms.kernel.keys import INPUT_KEYS
-from tests.integration.harness import Collector, put, running_daemon, wait_token
+from tests.integration.harness import Collector, paced, put, query, running_daemon, wait_token
 
 pytestmark = pytest.mark.integration
 
@@ -107,16 +107,10 @@ class Reports:
             return list(self.messages)
 
 
-def _get(session: zenoh.Session, key: str, payload: bytes | None = None) -> list[tuple[bool, Any]]:
-    """Every reply to one query (ok, body), with Zenoh's 10 s query timeout."""
-    replies = session.get(f"robots/mini/{key}", payload=payload, timeout=10.0)
-    out: list[tuple[bool, Any]] = []
-    for reply in replies:
-        if reply.ok is not None:
-            out.append((True, json.loads(reply.ok.payload.to_bytes())))
-        else:
-            out.append((False, json.loads(reply.err.payload.to_bytes())))
-    return out
+def _drain(batches: queue.Queue[list[Message] | None]) -> Iterator[Message]:
+    """The generated messages, batch after batch, until the generator says it is done."""
+    while (batch := batches.get(timeout=120)) is not None:
+        yield from batch
 
 
 _SENTINELS = itertools.count(1000)
@@ -271,7 +265,7 @@ def test_hostile_ids_on_every_key_are_reported_change_nothing_and_the_daemon_goe
         # users/<id>, agenda/<id>: an error reply naming the fault; nothing served
         for hostile, fragment in QUERY_HOSTILE_IDS:
             for prefix in ("users", "agenda"):
-                replies = _get(session, f"{prefix}/{hostile}")
+                replies = query(session, f"{prefix}/{hostile}")
                 assert len(replies) == 1 and not replies[0][0], (prefix, hostile, replies)
                 error = replies[0][1]["error"]
                 assert "user id" in error and fragment in error, (prefix, hostile, error)
@@ -281,19 +275,19 @@ def test_hostile_ids_on_every_key_are_reported_change_nothing_and_the_daemon_goe
         # agenda add: a hostile user id in the key or in the payload stores nothing
         item = {"op": "add", "kind": "reminder", "text": "pills", "at": "2099-01-01T10:00:00"}
         for hostile, fragment in QUERY_HOSTILE_IDS:
-            replies = _get(session, f"agenda/{hostile}", json.dumps(item).encode())
+            replies = query(session, f"agenda/{hostile}", json.dumps(item).encode())
             assert len(replies) == 1 and not replies[0][0], (hostile, replies)
             assert fragment in replies[0][1]["error"], (hostile, replies)
         for hostile, _ in HOSTILE_IDS:
             payload = json.dumps({**item, "user_id": hostile}).encode()
-            replies = _get(session, "agenda/ann", payload)
+            replies = query(session, "agenda/ann", payload)
             assert len(replies) == 1 and not replies[0][0], (hostile, replies)
             assert "user_id" in replies[0][1]["error"], (hostile, replies)
-        listing = _get(session, "agenda/*")
+        listing = query(session, "agenda/*")
         assert listing == [(True, {"items": []})], listing
-        added = _get(session, "agenda/ann", json.dumps({**item, "user_id": "ann"}).encode())
+        added = query(session, "agenda/ann", json.dumps({**item, "user_id": "ann"}).encode())
         assert len(added) == 1 and added[0][0], added
-        listing = _get(session, "agenda/ann")
+        listing = query(session, "agenda/ann")
         assert [i["user_id"] for i in listing[0][1]["items"]] == ["ann"], listing
 
         assert _faults(reports) == []
@@ -309,7 +303,7 @@ def test_an_id_zenoh_cannot_address_is_refused_at_the_bus(tmp_path: Path) -> Non
     with running_daemon(tmp_path, SERVE_PROFILES) as (daemon, session):
         reports = Reports(session)
         states = Collector(session, "robots/mini/dms/state")
-        assert _get(session, "users/@ann") == []  # Zenoh's doing: the daemon never sees it
+        assert query(session, "users/@ann") == []  # Zenoh's doing: the daemon never sees it
         start = reports.mark()
         put(session, "perception/user", {"present": True, "user_id": "@ann", "ready": True})
         end = _sentinel(session, reports, "perception/user", start)
@@ -329,7 +323,7 @@ def _wait_query_ok(session: zenoh.Session, key: str, timeout: float = 10.0) -> A
     deadline = time.monotonic() + timeout
     replies: list[tuple[bool, Any]] = []
     while time.monotonic() < deadline:
-        replies = _get(session, key)
+        replies = query(session, key)
         if replies and replies[0][0]:
             return replies[0][1]
     raise AssertionError(f"{key}: no ok reply within {timeout}s: {replies}")
@@ -608,27 +602,23 @@ def test_fuzz_every_input_key_and_queryable_against_one_daemon(tmp_path: Path) -
         unanswered: list[tuple[str, bytes | None]] = []
         internal: list[tuple[str, bytes | None, Any]] = []
         started = time.monotonic()
-        while (batch := batches.get(timeout=120)) is not None:
-            for kind, key, raw in batch:
-                ahead = started + (len(puts) + len(gets)) / FUZZ_RATE - time.monotonic()
-                if ahead > 0:
-                    time.sleep(ahead)  # pacing the sender, not waiting for an outcome
-                if kind == "put":
-                    assert raw is not None
-                    puts.append((key, raw))
-                    try:  # the oracle: the daemon's own parser, in this process
-                        parse_input(key, raw)
-                    except InputRejected as error:
-                        malformed[key] += 1
-                        expected[key, str(error)] += 1
-                    put(session, key, raw)
-                    continue
-                gets.append((key, raw))
-                replies = _get(session, key, raw)
-                if not replies:
-                    unanswered.append((key, raw))
-                elif not replies[0][0] and "internal error" in replies[0][1].get("error", ""):
-                    internal.append((key, raw, replies[0][1]))
+        for kind, key, raw in paced(_drain(batches), FUZZ_RATE):
+            if kind == "put":
+                assert raw is not None
+                puts.append((key, raw))
+                try:  # the oracle: the daemon's own parser, in this process
+                    parse_input(key, raw)
+                except InputRejected as error:
+                    malformed[key] += 1
+                    expected[key, str(error)] += 1
+                put(session, key, raw)
+                continue
+            gets.append((key, raw))
+            replies = query(session, key, raw)
+            if not replies:
+                unanswered.append((key, raw))
+            elif not replies[0][0] and "internal error" in replies[0][1].get("error", ""):
+                internal.append((key, raw, replies[0][1]))
         sent_s = time.monotonic() - started
         generator.join(10)
         ends = {key: _sentinel(session, reports, key, first_report) for key in INPUT_KEYS}
@@ -687,13 +677,7 @@ def _flood(
     sent: list[int] | None = None,
 ) -> None:
     """Put ``payloads`` on ``key`` at ``rate`` a second until they run out or ``stop``."""
-    started = time.monotonic()
-    for index, payload in enumerate(payloads):
-        if stop is not None and stop.is_set():
-            return
-        ahead = started + index / rate - time.monotonic()
-        if ahead > 0:
-            time.sleep(ahead)  # pacing the sender
+    for index, payload in enumerate(paced(payloads, rate, stop)):
         put(session, key, payload)
         if sent is not None:
             sent[0] = index + 1

@@ -12,23 +12,21 @@ from __future__ import annotations
 import contextlib
 import itertools
 import json
-import os
 import socket
 import threading
-import uuid
 from collections.abc import Iterator
 from datetime import datetime
 from pathlib import Path
 from typing import Any
-from urllib.parse import quote, urlsplit
+from urllib.parse import urlsplit
 
 import pytest
 import zenoh
 from sqlalchemy import create_engine, text
 
 from tests.integration.harness import Collector, DaemonProcess, client_session, free_port, put
+from tests.postgres import POSTGRES_URL, fresh_schema
 
-POSTGRES_URL = os.environ.get("DMS_TEST_POSTGRES_URL")
 pytestmark = [
     pytest.mark.integration,
     pytest.mark.postgres,
@@ -111,19 +109,11 @@ def relayed_url() -> Iterator[tuple[Relay, str, str]]:
     assert POSTGRES_URL is not None
     parts = urlsplit(POSTGRES_URL)
     relay = Relay((parts.hostname or "127.0.0.1", parts.port or 5432))
-    schema = f"o_{uuid.uuid4().hex[:12]}"
-    admin = create_engine(POSTGRES_URL)
-    with admin.begin() as connection:
-        connection.execute(text(f'CREATE SCHEMA "{schema}"'))
-    options = f"?options={quote(f'-csearch_path={schema}')}"
-    relayed = POSTGRES_URL.replace(f":{parts.port}/", f":{relay.port}/") + options
     try:
-        yield relay, relayed, POSTGRES_URL + options
+        with fresh_schema("o") as direct:
+            yield relay, direct.replace(f":{parts.port}/", f":{relay.port}/"), direct
     finally:
         relay.close()
-        with admin.begin() as connection:
-            connection.execute(text(f'DROP SCHEMA "{schema}" CASCADE'))
-        admin.dispose()
 
 
 def _t(state: dict[str, Any]) -> float:
