@@ -20,6 +20,7 @@ from types import FrameType
 from typing import Any
 
 from activities import reload_rules_and_behaviors
+from agenda.zenoh_api import ALL_USERS, handle_query
 from dms.assembly import Stack, build_stack
 from dms.bus import ZenohBus, make_config
 from dms.config import Settings
@@ -52,10 +53,6 @@ NOT_SERVED = (
     "personal data is not served to other processes: set [privacy] serve_profiles = true"
     " (and secure the bus: dms secure init)"
 )
-
-
-ALL_USERS = ("*", "**", "")
-"""The ``<user_id>`` of ``users/<user_id>`` and ``agenda/<user_id>`` that means everyone."""
 
 
 class QueryRefused(DmsError):
@@ -215,8 +212,6 @@ class Daemon:
         user_id = self._personal_subject(key, keys.AGENDA_PREFIX)
         if agenda is None:
             return False, {"error": "no agenda"}
-        from agenda.zenoh_api import handle_query
-
         # The agenda has its own lock and does its database work off it: holding the
         # daemon's lock here would make the tick wait for the database.
         return handle_query(agenda, user_id, payload, self.clock.now())
