@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from datetime import datetime
+from datetime import datetime, timedelta
 from enum import Enum
 from typing import Any
 
@@ -26,7 +26,7 @@ class ActivityStatus(Enum):
     FAILED = "failed"
     """Could not go on (a robot command failed or timed out); ``result.error`` says why."""
     CANCELLED = "cancelled"
-    """Stopped by ``cancel`` (preemption from outside)."""
+    """Stopped from outside: at once by ``cancel``, or by ``preempt`` once its cleanup ran."""
 
 
 @dataclass(frozen=True)
@@ -53,10 +53,16 @@ class Activity:
         self._result = ActivityResult()
         self.started_at: datetime | None = None
         self.ticks = 0
+        self._stop_by: datetime | None = None
 
     @property
     def result(self) -> ActivityResult:
         return self._result
+
+    @property
+    def stopping(self) -> bool:
+        """Preempted and running its cleanup states (``preempt``), not finished yet."""
+        return self._stop_by is not None and not self.finished
 
     @property
     def finished(self) -> bool:
@@ -82,6 +88,10 @@ class Activity:
             return self.start(now)
         if self.finished or self.status is ActivityStatus.PAUSED:
             return self.status
+        if self._stop_by is not None and now >= self._stop_by:
+            log.warning("activity %s: cleanup still running at its limit, stopped", self.name)
+            self.cancel(now)
+            return self.status
         self.ticks += 1
         try:
             status = self.root.tick(now)
@@ -89,7 +99,8 @@ class Activity:
             self._contain(now, error)
             return self.status
         if status is Status.DONE:
-            self._end(ActivityStatus.COMPLETED, self.root.outcome or "", None)
+            ended = ActivityStatus.CANCELLED if self._stop_by else ActivityStatus.COMPLETED
+            self._end(ended, self.root.outcome or "", None)
         elif status is Status.FAILED:
             self._end(ActivityStatus.FAILED, "failed", self.root.error or "failed")
         return self.status
@@ -106,8 +117,26 @@ class Activity:
             self.status = ActivityStatus.RUNNING
             self.root.resume(now)
 
+    def preempt(self, now: datetime, limit_s: float) -> ActivityStatus:
+        """Stop from outside the SMACH way: ask the active states to preempt, tick once.
+
+        States that declare a ``preempted`` transition follow it, so cleanup states
+        run (the quiz says it is stopping) in this tick and the next ones; the activity
+        then ends ``CANCELLED`` with the root's outcome. A paused or unstarted activity
+        has nothing running to clean up and is cancelled at once, and cleanup still
+        running ``limit_s`` after the request is cut off (``cancel``).
+        """
+        if self.status is not ActivityStatus.RUNNING:
+            self.cancel(now)
+            return ActivityStatus.CANCELLED if self.status is None else self.status
+        if self._stop_by is not None:  # asked already: one request
+            return self.status
+        self._stop_by = now + timedelta(seconds=limit_s)
+        self.root.preempt()
+        return self.tick(now)
+
     def cancel(self, now: datetime) -> None:
-        """Preempt from outside: stop every active state at once, at every depth."""
+        """Stop from outside at once: every active state, at every depth, no cleanup."""
         if self.status is None:
             self.status = ActivityStatus.CANCELLED
             self._result = ActivityResult("cancelled", None, None, {})

@@ -103,6 +103,9 @@ class ControllerSettings(_Section):
     perception_grace_s: float = Field(60.0, gt=0.0)
     """How long a session outlives stale or missing ``perception/user`` (the user is then
     unknown, not gone: the activity goes on, nothing new starts) before it ends."""
+    cleanup_limit_s: float = Field(10.0, ge=0.0)
+    """A cancelled activity's cleanup states (the quiz saying it stops) may run this long;
+    0 stops activities at once, without cleanup."""
     offline_after_unacked: int = Field(3, ge=1)
     """Commands in a row the robot never acknowledges before it is marked offline."""
     offline_retry_max_s: float = Field(300.0, gt=0.0)

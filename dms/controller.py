@@ -283,6 +283,8 @@ class Controller:
             self._advance_dialog(now)
         if outcome.failed:
             self._drop_dialog(now)
+        with guard("cleanup"):
+            self._wind_down(now)
         if self.dialog is None:
             with guard("activity", self.current and self.current.name) as outcome:
                 self._tick_activities(now)
@@ -316,8 +318,11 @@ class Controller:
         for running in (self.current, self.suspended):
             if running is not None:
                 with self._barrier.step("shutdown", running.name):
-                    self._cancel(running, "shutdown", now)
+                    self._cancel(running, "shutdown", now, cleanup=False)
         self.current = self.suspended = None
+        for manager in self.managers.values():
+            with self._barrier.step("shutdown", manager.name):
+                manager.stop_winding_down(now)
         if self._session is not None:
             with self._barrier.step("shutdown", self._session.user_id):
                 self._end_session(now)
@@ -798,11 +803,26 @@ class Controller:
         self._decide("resume", running.name, reason, running.chosen_by, detail, now)
 
     def _cancel(
-        self, running: Running, reason: Reason, now: datetime, detail: str | None = None
+        self,
+        running: Running,
+        reason: Reason,
+        now: datetime,
+        detail: str | None = None,
+        cleanup: bool = True,
     ) -> ManagerReply:
-        reply = self.managers[running.manager].cancel(now)
+        """Cancel ``running`` and say so; its cleanup states (SMACH's ``preempted``
+        transitions) run on while the next activity starts, unless ``cleanup`` is off."""
+        limit = self.settings.cleanup_limit_s
+        cleanup_s = limit if cleanup and limit > 0 else None
+        reply = self.managers[running.manager].cancel(now, cleanup_s)
         self._decide("cancel", running.name, reason, running.chosen_by, detail, now)
         return reply
+
+    def _wind_down(self, now: datetime) -> None:
+        """Tick the cleanup states of cancelled activities (also while a dialog is open)."""
+        for manager in self.managers.values():
+            if manager.winding_down:
+                manager.wind_down(now)
 
     def _tick_activities(self, now: datetime) -> None:
         running = self.current

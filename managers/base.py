@@ -4,6 +4,10 @@ The paper's managers sit one level below the central controller: the controller
 activates one, it starts the activity, and from then on every command (start, pause,
 resume, cancel, tick) gets a status answer, a :class:`ManagerReply`. An activity that
 raises is contained here: it is reported as failed, never brings the loop down.
+
+A cancel with ``cleanup_s`` is SMACH's preemption: the activity's cleanup states run
+on (``winding_down``) while the manager is already free for the next activity; the
+controller ticks them with :meth:`Manager.wind_down` until they end or time runs out.
 """
 
 from __future__ import annotations
@@ -67,6 +71,7 @@ class Manager:
         self._library = library
         self._activity: Activity | None = None
         self._activity_name: str | None = None
+        self._winding_down: list[Activity] = []
 
     @property
     def activities(self) -> tuple[str, ...]:
@@ -79,6 +84,11 @@ class Manager:
     @property
     def activity_name(self) -> str | None:
         return self._activity_name
+
+    @property
+    def winding_down(self) -> tuple[Activity, ...]:
+        """Cancelled activities whose cleanup states still run (oldest first)."""
+        return tuple(self._winding_down)
 
     def _reply(
         self, status: ManagerStatus, detail: str | None = None, redirect: str | None = None
@@ -107,6 +117,8 @@ class Manager:
             return ManagerReply(self.name, name, ManagerStatus.REFUSED, detail="not my activity")
         if self._activity is not None:
             return self._reply(ManagerStatus.REFUSED, detail=f"{self._activity_name} is running")
+        for old in [a for a in self._winding_down if a.name == name]:  # one source per name
+            self._stop_now(old, now)
         self._activity_name = name
         try:
             self._activity = self._library.create(name, ctx, args or {})
@@ -156,15 +168,51 @@ class Manager:
         self._activity.resume(now)
         return self._reply(ManagerStatus.RUNNING)
 
-    def cancel(self, now: datetime) -> ManagerReply:
-        if self._activity is None:
+    def cancel(self, now: datetime, cleanup_s: float | None = None) -> ManagerReply:
+        """Stop the activity: at once, or (``cleanup_s``) letting its cleanup states run.
+
+        Either way the reply is final and the manager is free: an activity still
+        cleaning up moves to ``winding_down``, ticked by :meth:`wind_down`.
+        """
+        activity = self._activity
+        if activity is None:
             return ManagerReply(self.name, None, ManagerStatus.IDLE)
         try:
-            self._activity.cancel(now)
+            if cleanup_s is None:
+                activity.cancel(now)
+            else:
+                activity.preempt(now, cleanup_s)
         except Exception as error:
             log.exception("activity %s raised on cancel", self._activity_name)
+            self._stop_now(activity, now)
             return self._finish(ManagerStatus.CANCELLED, detail=f"{type(error).__name__}: {error}")
+        if activity.stopping:
+            self._winding_down.append(activity)
         return self._finish(ManagerStatus.CANCELLED)
+
+    def wind_down(self, now: datetime) -> None:
+        """Tick the cleanup states of cancelled activities; forget those that ended."""
+        for activity in self._winding_down:
+            try:
+                activity.tick(now)
+            except Exception:
+                log.exception("activity %s raised while cleaning up", activity.name)
+                self._stop_now(activity, now)
+        self._winding_down = [a for a in self._winding_down if not a.finished]
+
+    def stop_winding_down(self, now: datetime) -> None:
+        """Cut every cleanup short (shutdown): stop at once."""
+        for activity in self._winding_down:
+            self._stop_now(activity, now)
+        self._winding_down = []
+
+    def _stop_now(self, activity: Activity, now: datetime) -> None:
+        try:
+            activity.cancel(now)
+        except Exception:
+            log.exception("activity %s raised when stopped", activity.name)
+        if activity in self._winding_down:
+            self._winding_down.remove(activity)
 
     def deliver(self, event: Speech | ScreenChoice | Touch) -> bool:
         """Offer a perception event to the activity; True if it took it (an answer)."""
