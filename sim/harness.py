@@ -186,6 +186,10 @@ class Simulation:
         for running in (self.controller.current, self.controller.suspended):
             if running is not None and running.name == name:
                 return name, running.started
+        for manager in self.controller.managers.values():  # cancelled, cleaning up
+            for activity in manager.winding_down:
+                if activity.name == name and activity.started_at is not None:
+                    return name, activity.started_at
         # Being started in this very tick (the manager's start sends its first command
         # before the controller records the run): the run will start now.
         return name, self.clock.now()
