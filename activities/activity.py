@@ -122,10 +122,14 @@ class Activity:
 
         States that declare a ``preempted`` transition follow it, so cleanup states
         run (the quiz says it is stopping) in this tick and the next ones; the activity
-        then ends ``CANCELLED`` with the root's outcome. A paused or unstarted activity
-        has nothing running to clean up and is cancelled at once, and cleanup still
-        running ``limit_s`` after the request is cut off (``cancel``).
+        then ends ``CANCELLED`` with the root's outcome. A paused activity is resumed
+        with the request already on its frozen states (the shoulder's "stop?" dialog
+        paused it), so it goes straight to its cleanup; an unstarted one is cancelled
+        at once, and cleanup still running ``limit_s`` after the request is cut off.
         """
+        if self.status is ActivityStatus.PAUSED:  # the request reaches the frozen leaves,
+            self.root.preempt_active()  # which then do not restart what they said
+            self.resume(now)
         if self.status is not ActivityStatus.RUNNING:
             self.cancel(now)
             return ActivityStatus.CANCELLED if self.status is None else self.status

@@ -346,11 +346,21 @@ class Node:
             self.on_pause(now)
 
     def resume(self, now: datetime) -> None:
+        """Thaw this state and those below; a leaf with a preemption request waiting
+        does not restart its commands (its next tick ends it ``preempted``)."""
         if self.status is Status.RUNNING and self.paused:
             self.paused = False
-            self.on_resume(now)
+            if self.is_container or not self._preempt_requested:
+                self.on_resume(now)
             for child in self.active_children():
                 child.resume(now)
+
+    def preempt_active(self) -> None:
+        """Put a preemption request on this state and every active state below it now
+        (the structure of a paused machine is frozen, so its leaves are known)."""
+        self.preempt()
+        for child in self.active_children():
+            child.preempt_active()
 
     def deliver(self, event: Event) -> bool:
         """Offer ``event`` to this state and the states active below it."""

@@ -811,9 +811,11 @@ class Controller:
         cleanup: bool = True,
     ) -> ManagerReply:
         """Cancel ``running`` and say so; its cleanup states (SMACH's ``preempted``
-        transitions) run on while the next activity starts, unless ``cleanup`` is off."""
+        transitions) run on while the next activity starts, unless ``cleanup`` is off
+        or it is the suspended activity (a reminder runs: it stops in silence)."""
         limit = self.settings.cleanup_limit_s
-        cleanup_s = limit if cleanup and limit > 0 else None
+        quiet = not cleanup or limit <= 0 or running is self.suspended
+        cleanup_s = None if quiet else limit
         reply = self.managers[running.manager].cancel(now, cleanup_s)
         self._decide("cancel", running.name, reason, running.chosen_by, detail, now)
         return reply

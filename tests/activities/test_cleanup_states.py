@@ -68,13 +68,20 @@ def test_a_behavior_without_cleanup_ends_in_the_same_tick(bench: Bench) -> None:
     assert activity.result.outcome == "preempted" and not activity.stopping
 
 
-def test_a_paused_activity_is_cancelled_at_once_without_cleanup(bench: Bench) -> None:
+def test_a_paused_quiz_goes_straight_to_its_cleanup_without_asking_again(
+    bench: Bench,
+) -> None:
+    """The shoulder's "stop?" dialog pauses the quiz; "stop" cancels it from there."""
     activity = bench.start(bench.create("quiz"))
     bench.run_until(activity, lambda: activity.state_path.endswith("ASK"))
+    question = bench.last_said()
     activity.pause(bench.now)
     said = len(bench.said())
-    assert activity.preempt(bench.now, limit_s=30) is ActivityStatus.CANCELLED
-    assert activity.result.outcome == "cancelled" and len(bench.said()) == said
+    activity.preempt(bench.now, limit_s=30)
+    assert activity.state_path == "STOPPING"
+    assert bench.said()[said:] and "stop the quiz here" in bench.said()[said]
+    assert question not in bench.said()[said:], "the question is not asked again"
+    assert bench.finish(activity, limit_s=30) is ActivityStatus.CANCELLED
 
 
 def test_an_unstarted_activity_is_cancelled(bench: Bench) -> None:

@@ -12,7 +12,7 @@ from datetime import UTC, datetime
 
 from dms.config import Settings
 from dms.kernel import keys
-from dms.kernel.messages import Request, RobotCommand, UserPerception
+from dms.kernel.messages import Request, RobotCommand, Speech, Touch, UserPerception
 from sim.harness import Simulation
 
 START = datetime(2026, 11, 23, 10, 0, tzinfo=UTC)
@@ -102,3 +102,18 @@ def test_shutdown_stops_at_once_without_cleanup() -> None:
         count = len(said)
         sim.stack.expression.update(sim.now())
         assert len(said) == count, "nothing more is said after shutdown"
+
+
+def test_stop_on_the_shoulder_dialog_runs_the_quiz_cleanup() -> None:
+    with _sim() as sim:
+        said = _speech(sim)
+        _quiz_mid_question(sim)
+        sim.feed(keys.PERCEPTION_TOUCH, Touch(part="right_shoulder", kind="tap"))
+        sim.tick(urgent=True)
+        sim.run_for(3)
+        mark = len(said)
+        sim.feed(keys.PERCEPTION_SPEECH, Speech(text="stop", confidence=0.95))
+        record = sim.tick(urgent=True)
+        assert ("cancel", "quiz") in [(d.action, d.activity) for d in record.decisions]
+        sim.run_for(10)
+        assert any("stop the quiz here" in t for t in said[mark:]), said[mark:]

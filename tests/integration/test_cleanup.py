@@ -20,9 +20,11 @@ ANN_READY = {"present": True, "user_id": "ann", "ready": True, "engagement": 0.8
 
 def _speech(command: dict[str, object]) -> str:
     args = command.get("args")
-    return str(args.get("text", "")) if command.get("channel") == "speech" and isinstance(
-        args, dict
-    ) else ""
+    return (
+        str(args.get("text", ""))
+        if command.get("channel") == "speech" and isinstance(args, dict)
+        else ""
+    )
 
 
 def test_a_quiz_cancelled_mid_question_says_it_stops(tmp_path: Path) -> None:
@@ -33,9 +35,7 @@ def test_a_quiz_cancelled_mid_question_says_it_stops(tmp_path: Path) -> None:
         put(session, "perception/user", ANN_READY)
         put(session, "request", {"action": "start", "activity": "quiz", "by": "caregiver"})
         decisions.wait_for(lambda d: d["action"] == "start" and d["activity"] == "quiz")
-        states.wait_for(
-            lambda s: "ASK" in ((s["activity"] or {}).get("state") or ""), timeout=60
-        )
+        states.wait_for(lambda s: "ASK" in ((s["activity"] or {}).get("state") or ""), timeout=60)
         mark = decisions.mark()
         said = commands.mark()
         put(session, "request", {"action": "start", "activity": "bingo", "by": "caregiver"})
