@@ -1,9 +1,10 @@
 """``dms agenda list|add|remove|missed``: the agenda from the command line.
 
-These commands open the daemon's database directly (``--db``, default the daemon's
-file). The command line is an entry point, so it reads the system clock for ``now``.
-A running daemon loads a user's items again when it next perceives that user; to
-change the agenda of a running daemon at once, use its Zenoh queryable (docs/agenda.md).
+These commands open the daemon's database directly (``--db`` or ``DMS_DB``, default
+the daemon's file), and never create one: a SQLite file that does not exist is refused.
+The command line is an entry point, so it reads the system clock for ``now``. A running
+daemon loads a user's items again when it next perceives that user; to change the agenda
+of a running daemon at once, use its Zenoh queryable (docs/agenda.md).
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ import json
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from datetime import datetime
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import typer
 
@@ -20,20 +21,13 @@ from agenda.errors import AgendaError
 from agenda.items import ItemSpec, UpcomingItem
 from agenda.service import Agenda
 from dms.kernel.clock import RealClock
+from memory.cli import DbOption, existing_url, print_table
 
 app = typer.Typer(no_args_is_help=True)
 
-DbOption = Annotated[
-    str | None, typer.Option("--db", help="SQLAlchemy database URL (default: the daemon's).")
-]
-
 
 def _url(db: str | None) -> str:
-    if db:
-        return db
-    from memory.db import default_url
-
-    return default_url()
+    return existing_url(db)
 
 
 def _user_check(url: str) -> tuple[Callable[[str], bool] | None, Callable[[], None]]:
@@ -68,14 +62,20 @@ def _agenda(db: str | None, check_users: bool = False) -> Iterator[Agenda]:
         close_store()
 
 
-def _line(item: UpcomingItem) -> str:
+def _row(item: UpcomingItem) -> list[str]:
     what = item.text if item.kind == "reminder" else item.activity
-    local = item.to_json()["next_fire_local"][:16]
+    local = item.to_json()["next_fire_local"][:16].replace("T", " ")
     flag = " (due, waiting)" if item.waiting else ""
-    return (
-        f"{item.item_id:>5}  {item.user_id:<12} {item.kind:<8} {item.priority:<6} "
-        f"{local} {item.tz:<16} {item.schedule:<24} {what}{flag}"
-    )
+    return [
+        str(item.item_id),
+        item.user_id,
+        item.kind,
+        item.priority,
+        local,
+        item.tz,
+        item.schedule,
+        f"{what}{flag}",
+    ]
 
 
 @app.command("list")
@@ -94,12 +94,8 @@ def list_command(
     if not items:
         typer.echo("no upcoming agenda items")
         return
-    typer.echo(
-        f"{'ID':>5}  {'USER':<12} {'KIND':<8} {'PRIO':<6} {'NEXT (local)':<16} "
-        f"{'TZ':<16} {'SCHEDULE':<24} WHAT"
-    )
-    for item in items:
-        typer.echo(_line(item))
+    header = ["id", "user", "kind", "priority", "next (local)", "tz", "schedule", "what"]
+    print_table(None, header, [_row(item) for item in items])
 
 
 @app.command("add")
@@ -115,7 +111,10 @@ def add_command(
     ] = None,
     every: Annotated[int | None, typer.Option(help="Every this many seconds.")] = None,
     tz: Annotated[str, typer.Option(help="IANA time zone, e.g. Europe/Madrid.")] = "UTC",
-    priority: Annotated[str, typer.Option(help="high (cancels) or normal (waits).")] = "normal",
+    priority: Annotated[
+        Literal["normal", "high"],
+        typer.Option(help="high cancels the running activity; normal waits for its end."),
+    ] = "normal",
     lead: Annotated[int, typer.Option(help="Announce this many seconds early.")] = 0,
     grace: Annotated[int, typer.Option(help="Wait this many seconds for the user.")] = 600,
     db: DbOption = None,
@@ -182,9 +181,15 @@ def missed_command(
     if not missed:
         typer.echo("nothing missed")
         return
-    for m in missed:
-        times = "" if m.count == 1 else f" x{m.count} until {m.last_fire_time.isoformat()}"
-        typer.echo(
-            f"{m.item_id:>5}  {m.user_id:<12} {m.fire_time.isoformat()}{times}"
-            f"  {m.what}: {m.reason}"
-        )
+    rows = [
+        [
+            str(m.item_id),
+            m.user_id,
+            m.fire_time.isoformat(),
+            "1" if m.count == 1 else f"{m.count} until {m.last_fire_time.isoformat()}",
+            m.what,
+            m.reason,
+        ]
+        for m in missed
+    ]
+    print_table(None, ["id", "user", "time", "times", "what", "why"], rows)

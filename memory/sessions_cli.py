@@ -14,16 +14,12 @@ import io
 import json
 import statistics
 from datetime import UTC, datetime
-from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import typer
-from sqlalchemy.engine import make_url
-from sqlalchemy.exc import ArgumentError
 
 from dms.kernel.session_metrics import METRIC_KEYS
-from memory.db import as_url, default_url
-from memory.errors import ProfileError
+from memory.cli import DbOption, existing_url
 from memory.store import ProfileStore
 
 app = typer.Typer(no_args_is_help=True)
@@ -31,28 +27,10 @@ app = typer.Typer(no_args_is_help=True)
 COLUMNS: tuple[str, ...] = ("session", "user", "started", "ended", *METRIC_KEYS)
 """One row per session: these keys in JSON, these columns in CSV."""
 
-DbOption = Annotated[
-    str | None, typer.Option("--db", help="SQLAlchemy database URL (default: the daemon's).")
-]
 SinceOption = Annotated[
     str | None,
     typer.Option("--since", help="Only sessions started on or after this date (ISO, UTC)."),
 ]
-
-
-def existing_url(db: str | None) -> str:
-    """The database URL to read; a SQLite file that does not exist is refused (a read
-    must not leave an empty database behind, nor answer "no sessions" for a typo)."""
-    url = as_url(db) if db else default_url()
-    try:
-        parsed = make_url(url)
-    except ArgumentError as error:
-        raise ProfileError(f"cannot open database {url!r}: {error}") from None
-    database = parsed.database
-    local = parsed.get_backend_name() == "sqlite" and database and database != ":memory:"
-    if local and database and not Path(database).exists():
-        raise ProfileError(f"no database at {database}")
-    return url
 
 
 def parse_since(value: str | None) -> datetime | None:

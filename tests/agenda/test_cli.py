@@ -96,7 +96,6 @@ def test_add_list_remove(db: list[str]) -> None:
         (["--reminder", "x", "--at", "2020-01-01T10:00"], "in the past"),
         (["--reminder", "x", "--cron", "0 10 * *"], "expected 5 fields"),
         (["--reminder", "x", "--every", "60", "--tz", "Madrid"], "unknown time zone"),
-        (["--reminder", "x", "--every", "60", "--priority", "urgent"], "priority"),
     ],
 )
 def test_bad_add_is_one_line_and_stores_nothing(

@@ -101,6 +101,13 @@ def deployment(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Deployment]
     directory = tmp / "sec"
     secure.init(directory, "mini", f"tls/127.0.0.1:{port}")
     daemon = SecuredDaemon(tmp, directory / "dms.json5")
+    created = subprocess.run(  # the users commands never create a database
+        [sys.executable, "-m", "dms.cli", "db", "upgrade", "--db", daemon.db],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert created.returncode == 0, created.stderr
     added = subprocess.run(
         [
             *(sys.executable, "-m", "dms.cli", "users", "add", "alice"),

@@ -33,8 +33,8 @@ def _fill(store: ProfileStore) -> None:
 
 def test_list_show_export(store: ProfileStore, db_url: str) -> None:
     _fill(store)
-    code, out, _ = _run("list", "--db", db_url)
-    assert (code, out.split()) == (0, ["ann", "bob"])
+    code, out, _ = _run("list", "--json", "--db", db_url)
+    assert (code, json.loads(out)) == (0, {"users": ["ann", "bob"]})
     code, out, _ = _run("show", "ann", "--db", db_url)
     shown = json.loads(out)
     assert code == 0 and shown["name"] == "Ann" and shown["age"] == 80
@@ -52,14 +52,14 @@ def test_erase_while_the_daemon_holds_the_database(store: ProfileStore, db_url: 
     # The daemon is in the middle of a read when the erase comes.
     with store.engine.connect() as daemon_connection:
         daemon_connection.execute(text("SELECT COUNT(*) FROM users")).scalar_one()
-        code, out, error = _run("erase", "ann", "--db", db_url)
+        code, out, error = _run("erase", "ann", "--yes", "--db", db_url)
         assert (code, error) == (0, None)
         assert "erased ann" in out
     assert store.list_ids() == ["bob"]
     # The daemon keeps writing after the erase.
     store.record_feedback("bob", "dance", 0.5, NOW)
-    code, out, _ = _run("list", "--db", db_url)
-    assert out.split() == ["bob"]
+    code, out, _ = _run("list", "--json", "--db", db_url)
+    assert json.loads(out) == {"users": ["bob"]}
 
 
 def test_unknown_user_is_a_one_line_error(store: ProfileStore, db_url: str) -> None:
@@ -72,10 +72,12 @@ def test_unknown_user_is_a_one_line_error(store: ProfileStore, db_url: str) -> N
 
 def test_users_add_registers_a_user_the_agenda_then_accepts(tmp_path: Path) -> None:
     url = f"sqlite:///{tmp_path / 'dms.db'}"
+    ProfileStore(url).close()  # the daemon's database (the CLI never creates one)
     runner = CliRunner()
     bad = runner.invoke(app, ["add", "ann", "--set", "age=300", "--db", url])
     assert bad.exit_code != 0 and "age" in str(bad.exception)
-    assert runner.invoke(app, ["list", "--db", url]).output == ""  # nothing stored
+    listed = runner.invoke(app, ["list", "--json", "--db", url]).output
+    assert json.loads(listed) == {"users": []}  # nothing stored
     added = runner.invoke(app, ["add", "ann", "--set", "name=Ann", "--set", "age=81", "--db", url])
     assert added.exit_code == 0, added.output
     profile = json.loads(added.output)

@@ -123,7 +123,7 @@ def test_erase_removes_every_row_of_the_user_in_every_table_and_no_other(
     # Every table that names a user holds some of ann's rows, agenda included.
     assert {"agenda_items", "agenda_occurrences", "users", "sessions"} <= set(ann_before)
     assert all(count > 0 for count in ann_before.values()), ann_before
-    code, out = _cli("erase", "ann", "--db", str(db_path))
+    code, out = _cli("erase", "ann", "--yes", "--db", str(db_path))
     assert code == 0 and "erased ann" in out
     assert set(_rows_of(db_path, "ann").values()) == {0}
     assert _rows_of(db_path, "bob") == bob_before
@@ -136,7 +136,7 @@ def test_erase_while_the_daemon_holds_the_database_does_not_bring_the_user_back(
     _fill(store, agenda)
     with store.engine.connect() as reading:
         reading.execute(text("SELECT count(*) FROM agenda_items")).scalar_one()
-        code, _ = _cli("erase", "ann", "--db", str(db_path))
+        code, _ = _cli("erase", "ann", "--yes", "--db", str(db_path))
         assert code == 0
     # The daemon's agenda still holds ann's items in memory; its next misses and
     # deliveries must not write her log again.
