@@ -24,6 +24,12 @@ from dms.kernel import keys
 from dms.kernel.errors import ConfigError
 
 DEFAULT_LISTEN = ("tcp/127.0.0.1:7447",)
+DEFAULT_CONNECT = "tcp/127.0.0.1:7447"
+"""Where a tool (``dms view``, ``dms echo``...) looks for the daemon by default."""
+TOOL_CONNECT_TIMEOUT_S = 5.0
+"""How long a tool waits for its endpoints before it says they are unreachable."""
+ALIVE_QUERY_TIMEOUT_S = 3.0
+"""How long a starting daemon waits for another one's ``alive/dms`` token to answer."""
 JSON = zenoh.Encoding.APPLICATION_JSON
 
 InputHandler = Callable[[str, bytes], None]
@@ -60,6 +66,53 @@ def make_config(
         if connect:
             config.insert_json5("connect/endpoints", json.dumps(list(connect)))
         config.insert_json5("scouting/multicast/enabled", "false")
+    except (zenoh.ZError, ValueError) as error:
+        raise ConfigError(f"zenoh endpoints: {error}") from None
+    return config
+
+
+def make_router_config(
+    listen: Sequence[str] = (), config_file: Path | None = None
+) -> zenoh.Config:
+    """``dms router``'s configuration: the same endpoints and file, in router mode."""
+    config = make_config(listen, (), config_file)
+    config.insert_json5("mode", json.dumps("router"))
+    return config
+
+
+class ZenohRouter:
+    """Zenoh's own router, run in this process (``dms router``): the daemons of a fleet
+    connect to it, and it routes their keys and liveliness tokens to each other and to
+    the tools (``dms fleet status``, ``dms view``). Nothing of dms runs in it."""
+
+    def __init__(self, config: zenoh.Config) -> None:
+        self.session = open_session(config)
+
+    @property
+    def zid(self) -> str:
+        return str(self.session.info.zid())
+
+    def close(self) -> None:
+        self.session.close()
+
+
+def make_client_config(
+    connect: Sequence[str] = (),
+    config_file: Path | None = None,
+    timeout_s: float = TOOL_CONNECT_TIMEOUT_S,
+) -> zenoh.Config:
+    """A tool's configuration: a peer that listens nowhere and connects to ``connect`` (by
+    default the daemon's default endpoint), or to the file's endpoints. Opening it fails,
+    with Zenoh's reason, when none of them answers within ``timeout_s``; once open, a lost
+    link is retried in the background (a restarted daemon is found again)."""
+    if config_file is None and not connect:
+        connect = (DEFAULT_CONNECT,)
+    config = make_config(connect=connect, config_file=config_file)
+    try:
+        if config_file is None:
+            config.insert_json5("listen/endpoints", "[]")
+        config.insert_json5("connect/exit_on_failure", "true")
+        config.insert_json5("connect/timeout_ms", str(int(timeout_s * 1000)))
     except (zenoh.ZError, ValueError) as error:
         raise ConfigError(f"zenoh endpoints: {error}") from None
     return config
@@ -104,6 +157,7 @@ class ZenohBus:
         (``users/``) to its handler.
         """
         session = self._session = open_session(self._config)
+        self.refuse_if_alive()
         robot = self.robot_id
 
         def on_sample(sample: zenoh.Sample) -> None:
@@ -139,6 +193,34 @@ class ZenohBus:
             self._publishers[key] = session.declare_publisher(
                 self._key(key), encoding=JSON, express=True, congestion_control=congestion
             )
+
+    def refuse_if_alive(self, timeout_s: float = ALIVE_QUERY_TIMEOUT_S) -> None:
+        """Raise ConfigError when another daemon already declares this robot's ``alive/dms``.
+
+        Asked before anything is declared: the refused daemon has served no query and
+        subscribed to nothing, and its session is closed here, so that nothing it would
+        publish while stopping (a shutdown state) reaches the live robot's keys.
+        """
+        assert self._session is not None
+        key = self._key(keys.ALIVE_DMS)
+        try:
+            replies = self._session.liveliness().get(key, timeout=timeout_s)
+            alive = any(reply.ok is not None for reply in replies)
+        except zenoh.ZError as error:
+            self._abandon()
+            raise ConfigError(f"cannot ask whether {key} is alive: {one_line(error)}") from None
+        if alive:
+            self._abandon()
+            raise ConfigError(
+                f"robot {self.robot_id} is already running: {key} is declared on the bus"
+                " (stop that daemon, or give this one another --robot-id)"
+            )
+
+    def _abandon(self) -> None:
+        """Close the session of a daemon that will not start (publishing becomes a no-op)."""
+        if self._session is not None:
+            self._session.close()
+            self._session = None
 
     def _serve(self, handler: QueryHandler) -> Callable[[zenoh.Query], None]:
         robot = self.robot_id
@@ -252,8 +334,14 @@ class ZenohClient:
         self, key: str, payload: Mapping[str, Any] | None = None, timeout_s: float = 5.0
     ) -> list[tuple[bool, Any]]:
         """``session.get`` on ``robots/<id>/<key>``: (ok, decoded JSON) per reply."""
+        return self.query_absolute(self.key(key), payload, timeout_s)
+
+    def query_absolute(
+        self, key_expr: str, payload: Mapping[str, Any] | None = None, timeout_s: float = 5.0
+    ) -> list[tuple[bool, Any]]:
+        """``session.get`` on any key expression (another robot's, for fleet tools)."""
         replies = self.session.get(
-            self.key(key),
+            key_expr,
             payload=encode(payload) if payload is not None else None,
             timeout=timeout_s,
         )
@@ -264,6 +352,17 @@ class ZenohClient:
             elif reply.err is not None:
                 out.append((False, json.loads(reply.err.payload.to_bytes())))
         return out
+
+    def alive_robots(self, timeout_s: float = 2.0) -> list[str]:
+        """The robot ids whose daemon's ``alive/dms`` token exists now, sorted."""
+        pattern = keys.absolute("*", keys.ALIVE_DMS)
+        found: set[str] = set()
+        for reply in self.session.liveliness().get(pattern, timeout=timeout_s):
+            if reply.ok is not None:
+                parts = str(reply.ok.key_expr).split("/")
+                if len(parts) > 1:
+                    found.add(parts[1])
+        return sorted(found)
 
     def close(self) -> None:
         for entity in self._entities:

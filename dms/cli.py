@@ -17,6 +17,8 @@ import typer
 from activities.cli import app as behavior_app
 from activities.cli import use_robot
 from agenda.cli import app as agenda_app
+from dms.fleet_cli import app as fleet_app
+from dms.fleet_cli import router as router_command
 from dms.kernel.errors import DmsError
 from dms.kernel.ports import RobotPort
 from dms.rules_cli import app as rules_app
@@ -88,6 +90,8 @@ app.add_typer(behavior_app, name="behavior", help="Behavior files: check, draw, 
 app.add_typer(sim_app, name="sim", help="Simulated sessions, studies and long-term runs.")
 app.add_typer(secure_app, name="secure", help="Mutual TLS and access control per role.")
 app.command("record")(record_command)
+app.add_typer(fleet_app, name="fleet", help="The robots of a fleet: status.")
+app.command("router")(router_command)
 
 
 @app.command()

@@ -120,12 +120,16 @@ class DaemonProcess:
         port: int | None = None,
         extra_config: str = "",
         extra_args: tuple[str, ...] = (),
+        robot_id: str = "mini",
+        db: str | None = None,
     ) -> None:
         """``extra_config`` is appended inside the ``[controller]`` table (or opens its own
-        tables); ``extra_args`` go after ``dms run``'s flags (``--robot zenoh``)."""
+        tables); ``extra_args`` go after ``dms run``'s flags (``--robot zenoh``,
+        ``--connect`` to a router). ``db``: a shared database (a fleet's PostgreSQL)."""
         self.port = port or free_port()
         self.extra_args = extra_args
-        self.db = f"sqlite:///{tmp / 'dms.db'}"
+        self.robot_id = robot_id
+        self.db = db or f"sqlite:///{tmp / 'dms.db'}"
         self.config = tmp / "dms.toml"
         self.config.write_text(
             'seed = 3\n[inputs]\nstale_after_s = { "perception/user" = 30.0 }\n'
@@ -150,6 +154,8 @@ class DaemonProcess:
                 self.db,
                 "--listen",
                 f"tcp/127.0.0.1:{self.port}",
+                "--robot-id",
+                self.robot_id,
                 *self.extra_args,
             ],
             stdout=self._log_file,
@@ -158,7 +164,7 @@ class DaemonProcess:
             env=env,
         )
         try:
-            wait_token(session, "robots/mini/alive/dms", present=True)
+            wait_token(session, f"robots/{self.robot_id}/alive/dms", present=True)
         except AssertionError:
             self.proc.kill()
             raise AssertionError(f"daemon never became ready:\n{self.log.read_text()}") from None
@@ -190,12 +196,14 @@ def running_daemon(
         session.close()
 
 
-def put(session: zenoh.Session, key: str, payload: dict[str, Any] | bytes) -> None:
+def put(
+    session: zenoh.Session, key: str, payload: dict[str, Any] | bytes, robot: str = "mini"
+) -> None:
     data = payload if isinstance(payload, bytes) else json.dumps(payload).encode()
     # BLOCK: a megabyte payload is fragmented, and under the default DROP a busy queue
     # may drop it at the sender, before the daemon could reject it.
     session.put(
-        f"robots/mini/{key}",
+        f"robots/{robot}/{key}",
         data,
         encoding=zenoh.Encoding.APPLICATION_JSON,
         congestion_control=zenoh.CongestionControl.BLOCK,
@@ -203,12 +211,15 @@ def put(session: zenoh.Session, key: str, payload: dict[str, Any] | bytes) -> No
 
 
 def query(
-    session: zenoh.Session, key: str, payload: dict[str, Any] | bytes | None = None
+    session: zenoh.Session,
+    key: str,
+    payload: dict[str, Any] | bytes | None = None,
+    robot: str = "mini",
 ) -> list[tuple[bool, Any]]:
     """Every reply to one query, as (ok, body); a dict payload is sent as JSON, bytes as
     they are. Zenoh's query timeout is 10 s."""
     data = json.dumps(payload).encode() if isinstance(payload, dict) else payload
-    replies = session.get(f"robots/mini/{key}", payload=data, timeout=10.0)
+    replies = session.get(f"robots/{robot}/{key}", payload=data, timeout=10.0)
     out: list[tuple[bool, Any]] = []
     for reply in replies:
         if reply.ok is not None:
