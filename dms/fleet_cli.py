@@ -79,9 +79,9 @@ def status(
     timeout: Annotated[float, typer.Option(help="Seconds to wait for replies.", min=0.1)] = 2.0,
 ) -> None:
     """The robots alive (their ``alive/dms`` token), with activity, user and mode."""
-    from dms.bus import ZenohClient, make_config
+    from dms.bus import ZenohClient, make_client_config
 
-    config = make_config((), list(connect or []), zenoh_config)
+    config = make_client_config(list(connect or []), zenoh_config)
     with ZenohClient("fleet", config) as client:
         robots = client.alive_robots(timeout)
         rows = [
