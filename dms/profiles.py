@@ -8,6 +8,11 @@ reads. A write the database cannot take now is spooled to a durable file and rep
 in order; one it refuses for good is quarantined with a report (``report``: the daemon
 publishes it on ``dms/errors``). A session is named by a key made here, so that the
 controller need not wait for the database's id.
+
+Every write gets a unique ``write_id`` here, spooled with it: the store records it in
+the write's own transaction and skips a write whose id it has (docs/fleet.md), so a
+replay after a crash, or the write that was in flight when the writer gave up, is
+applied once. A session's key is its ``start_session``'s id.
 """
 
 from __future__ import annotations
@@ -35,6 +40,18 @@ enough for a healthy database, so the session starts with the profile in the sam
 short enough that a locked or absent database costs the tick nothing noticeable."""
 
 _RECORD_ACTIVITY_SESSION = 7  # the position of session_id in ProfileStore.record_activity
+
+ONCE = frozenset(
+    {
+        "update",
+        "record_activity",
+        "record_feedback",
+        "record_answer",
+        "record_interaction",
+        "record_initiative",
+    }
+)
+"""Store writes that take a ``write_id`` (``start_session`` takes its key as one)."""
 
 
 class ProfileService:
@@ -100,6 +117,8 @@ class ProfileService:
             key = f"session-{uuid.uuid4().hex}"
             self.writer.submit(Write(method, args, {**kwargs, "key": key}))
             return key
+        if method in ONCE and "write_id" not in kwargs:
+            kwargs = {**kwargs, "write_id": uuid.uuid4().hex}
         self.writer.submit(Write(method, args, kwargs))
         return None
 
@@ -123,6 +142,7 @@ class ProfileService:
         args, kwargs = list(write.args), dict(write.kwargs)
         if write.method == "start_session":
             key = str(kwargs.pop("key"))
+            kwargs["write_id"] = key
             session_id = self.store.start_session(*args, **kwargs)
             self.writer.bind(key, session_id)
             return session_id

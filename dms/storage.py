@@ -233,7 +233,8 @@ class StorageWriter:
         with self._cond:
             if self._thread is not None and self._thread.is_alive():
                 # Stuck in a database call: keep the write in flight and the queue. The
-                # one in flight may also land, and would then be written twice.
+                # one in flight may also land: a write with a write_id (the profile
+                # service's) is then skipped by the store when it is replayed.
                 left = ([self._inflight] if self._inflight else []) + list(self._queue)
                 self._queue.clear()
                 self.spool.prepend([w.to_json() for w, _ in left], self.binds)

@@ -5,6 +5,12 @@ proactivity, free attributes); ``activity_scores`` the user's own running scores
 activity; ``sessions``, ``activity_runs``, ``feedback`` and ``answers`` the history.
 Every history row hangs from its user with ``ON DELETE CASCADE`` so that erasing a
 user erases everything. Schema changes go through ``memory/migrations``.
+
+Several robots write the same profile (docs/fleet.md): ``users.version`` is bumped by
+every write and checked by the ORM (``version_id_col``), so a field write made on a
+stale read fails and is retried on the fresh row; counters are incremented in the
+database; ``applied_writes`` records each write's unique id in the write's own
+transaction, so a write replayed from a spool is applied once.
 """
 
 from __future__ import annotations
@@ -80,10 +86,14 @@ class UserRow(Base):
     screen_failures: Mapped[int] = mapped_column(Integer, default=0)
     initiative_taken: Mapped[int] = mapped_column(Integer, default=0)
     initiative_offered: Mapped[int] = mapped_column(Integer, default=0)
+    version: Mapped[int] = mapped_column(Integer, default=1, server_default="0")
+    """Bumped by every write of the profile; an ORM update checks it (optimistic lock)."""
 
     scores: Mapped[list[ActivityScoreRow]] = relationship(
         cascade="all, delete-orphan", passive_deletes=True, lazy="joined"
     )
+
+    __mapper_args__ = {"version_id_col": version}  # noqa: RUF012 (SQLAlchemy's own dict)
 
 
 class ActivityScoreRow(Base):
@@ -163,3 +173,22 @@ class AnswerRow(Base):
     answer: Mapped[str] = mapped_column(Text)
     applied: Mapped[dict[str, Any] | None] = mapped_column(JSON)
     at: Mapped[datetime] = mapped_column(UtcDateTime())
+
+
+class AppliedWriteRow(Base):
+    """A write already applied: its unique id, recorded in the write's own transaction.
+
+    A write replayed from a spool (after a crash, or the in-flight write of a writer
+    that did not finish) finds its id here and is not applied again. ``result`` keeps
+    what the write returned when a replay needs it (the id of a session it started).
+    Old rows are pruned (:data:`memory.store.APPLIED_KEEP_DAYS`).
+    """
+
+    __tablename__ = "applied_writes"
+
+    write_id: Mapped[str] = mapped_column(String(64), primary_key=True)
+    user_id: Mapped[str] = mapped_column(
+        ForeignKey("users.user_id", ondelete="CASCADE"), index=True
+    )
+    result: Mapped[int | None] = mapped_column(Integer)
+    applied_at: Mapped[datetime] = mapped_column(UtcDateTime(), index=True)

@@ -101,7 +101,7 @@ ALIASES = {"gender": "sex", "favoriteroom": "favorite_room"}
 """Other names a caller may use for a field (the personas say ``gender``, seed 000
 ``favoriteroom``)."""
 
-RESERVED = frozenset({"id", "user_id", "likes", "created_at", "updated_at"})
+RESERVED = frozenset({"id", "user_id", "likes", "created_at", "updated_at", "version", "write_id"})
 ATTRIBUTE_NAME = re.compile(r"^[a-z][a-z0-9_]{0,49}$")
 MAX_ATTRIBUTES = 100
 
@@ -133,7 +133,7 @@ def validate_fields(fields: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str
         if name in RESERVED or not ATTRIBUTE_NAME.match(name):
             raise ProfileError(
                 f"{name!r:.60}: not a profile field name (lower case letters, digits and _, "
-                "not id, user_id, likes)"
+                "not id, user_id, likes, version, write_id)"
             )
         if value is not None and (
             not isinstance(value, str | int | float | bool)
@@ -201,6 +201,8 @@ class Profile(BaseModel):
     screen_failures: int = 0
     initiative_taken: int = 0
     initiative_offered: int = 0
+    version: int = 0
+    """The row's version when read: bumped by every write (several robots, docs/fleet.md)."""
 
     def likes(self) -> frozenset[str]:
         """Activities whose own score reaches :data:`LIKED_AT`."""

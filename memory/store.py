@@ -7,17 +7,28 @@ classified (:func:`classify`): :class:`StoreUnavailable` for a passing trouble (
 a lost connection, a timeout: retry later), :class:`StoreRefused` for a refusal of this
 one request (a constraint, a value the database cannot hold, a missing table: retrying
 will not help). The daemon spools the first and quarantines the second.
+
+Several robots may write one profile at once (docs/fleet.md). No write loses
+another's: counters of activity scores are incremented in the database (an upsert,
+``INSERT ... ON CONFLICT DO UPDATE SET n = n + excluded.n``); histories are appended;
+the other fields are written through the row's version (``users.version``, checked by
+the ORM), and a write made on a stale read is retried on the fresh row (its fields are
+merged into the other write's, never over a row it did not read). A write that carries
+a ``write_id`` (the daemon's all do) records it in ``applied_writes`` in the same
+transaction and is skipped when it comes again (a spool replayed after a crash).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
-from contextlib import contextmanager
-from datetime import datetime
-from typing import Any, Protocol
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager, suppress
+from datetime import UTC, datetime, timedelta
+from typing import Any, Protocol, TypeVar
 
-from sqlalchemy import delete, inspect, select
+from sqlalchemy import Table, case, delete, insert, inspect, literal, select, update
+from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import (
     ArgumentError,
@@ -32,6 +43,7 @@ from sqlalchemy.exc import (
 )
 from sqlalchemy.exc import TimeoutError as PoolTimeout
 from sqlalchemy.orm import Session, sessionmaker
+from sqlalchemy.orm.exc import StaleDataError
 
 from dms.kernel.ids import InvalidIdentifier, check_identifier
 from memory import migrations, proactivity
@@ -48,9 +60,11 @@ from memory.models import (
     ActivityRunRow,
     ActivityScoreRow,
     AnswerRow,
+    AppliedWriteRow,
     FeedbackRow,
     SessionRow,
     UserRow,
+    UtcDateTime,
 )
 from memory.profile import (
     INTERACTION_STYLES,
@@ -65,6 +79,15 @@ FAILURES_TO_SWITCH = 3
 
 
 COMPLETED_OUTCOMES = frozenset({"completed", "done", "succeeded", "success"})
+
+MAX_ATTEMPTS = 50
+"""Tries of one field write whose row another writer keeps changing under it."""
+APPLIED_KEEP_DAYS = 30
+"""How long a write's id is kept in ``applied_writes``: longer than any spool waits."""
+PRUNE_EVERY = 1000
+"""Writes with an id between two prunings of old ids, per store."""
+
+T = TypeVar("T")
 
 
 def _one_line(error: BaseException) -> str:
@@ -179,6 +202,7 @@ def snapshot(row: UserRow) -> Profile:
         screen_failures=row.screen_failures,
         initiative_taken=row.initiative_taken,
         initiative_offered=row.initiative_offered,
+        version=row.version,
     )
 
 
@@ -212,6 +236,18 @@ def register_user_data(part: UserData) -> None:
 
 class _Conflict(StoreRefused):
     """A write collided with a row another writer made (a unique key)."""
+
+
+class _Stale(StoreUnavailable):
+    """Another writer changed the row since this write read it (its version moved)."""
+
+
+class _AlreadyApplied(Exception):
+    """The write's id is in ``applied_writes``: it was applied before."""
+
+    def __init__(self, result: int | None) -> None:
+        super().__init__("already applied")
+        self.result = result
 
 
 class ProfileStore:
@@ -259,6 +295,11 @@ class ProfileStore:
                 "it empty"
             )
         self._sessions = sessionmaker(self.engine, expire_on_commit=False)
+        self._dialect = self.engine.dialect.name
+        self._count_lock = threading.Lock()
+        self._since_prune = 0
+        self.retries = 0
+        """Field writes retried because another writer changed the row first."""
 
     # ------------------------------------------------------------------ plumbing
 
@@ -271,6 +312,8 @@ class ProfileStore:
                 yield session
         except ProfileError:
             raise
+        except StaleDataError as error:
+            raise _Stale(f"changed by another writer: {_one_line(error)}") from None
         except IntegrityError as error:
             raise _Conflict(f"refused by the database: {_one_line(error)}") from None
         except SQLAlchemyError as error:
@@ -283,48 +326,200 @@ class ProfileStore:
             raise ProfileNotFound(f"no profile for user {user_id!r}")
         return row
 
-    @staticmethod
-    def _score(session: Session, row: UserRow, activity: str) -> ActivityScoreRow:
-        for score in row.scores:
-            if score.activity == activity:
-                return score
-        score = ActivityScoreRow(
-            user_id=row.user_id,
-            activity=activity,
-            feedback_sum=0.0,
-            feedback_count=0,
-            completions=0,
-            cancellations=0,
+    def _bump_score(self, session: Session, user_id: str, activity: str, **deltas: Any) -> None:
+        """Add ``deltas`` to the user's score of ``activity`` in the database, creating the
+        row if needed: one statement, so concurrent writers neither collide nor lose one."""
+        table: Table = ActivityScoreRow.__table__  # type: ignore[assignment]
+        values: dict[str, Any] = {
+            "user_id": user_id,
+            "activity": activity,
+            "feedback_sum": 0.0,
+            "feedback_count": 0,
+            "completions": 0,
+            "cancellations": 0,
+            **deltas,
+        }
+        if self._dialect in ("sqlite", "postgresql"):
+            module: Any = sqlite if self._dialect == "sqlite" else postgresql
+            statement = module.insert(table).values(values)
+            session.execute(
+                statement.on_conflict_do_update(
+                    index_elements=["user_id", "activity"],
+                    set_={name: table.c[name] + statement.excluded[name] for name in deltas},
+                )
+            )
+            return
+        changed = session.execute(
+            update(table)
+            .where(table.c.user_id == user_id, table.c.activity == activity)
+            .values({name: table.c[name] + value for name, value in deltas.items()})
         )
-        row.scores.append(score)
-        return score
+        if not changed.rowcount:  # type: ignore[attr-defined]
+            session.execute(insert(table).values(values))
+
+    @staticmethod
+    def _touch(session: Session, user_id: str, when: datetime) -> None:
+        """Bump the user's version and move ``updated_at`` up to ``when`` (never back),
+        in the database; ProfileNotFound without the user. Locks the row (PostgreSQL)
+        until the transaction ends, so the writes of one user queue there."""
+        later = literal(when, UtcDateTime())
+        changed = session.execute(
+            update(UserRow)
+            .where(UserRow.user_id == user_id)
+            .values(
+                version=UserRow.version + 1,
+                updated_at=case((UserRow.updated_at < later, later), else_=UserRow.updated_at),
+            )
+            .execution_options(synchronize_session=False)
+        )
+        if not changed.rowcount:  # type: ignore[attr-defined]
+            raise ProfileNotFound(f"no profile for user {user_id!r}")
+
+    @staticmethod
+    def _fresh(session: Session, user_id: str) -> Profile:
+        """The user's snapshot as this transaction sees it now (after its own writes)."""
+        session.flush()
+        row = session.get(UserRow, user_id, populate_existing=True)
+        if row is None:
+            raise ProfileNotFound(f"no profile for user {user_id!r}")
+        return snapshot(row)
+
+    def _once(
+        self,
+        write_id: str | None,
+        user_id: str,
+        change: Callable[[Session], T],
+        again: Callable[[int | None], T],
+        result: Callable[[T], int | None] = lambda _: None,
+    ) -> T:
+        """Run ``change`` in one transaction, once per ``write_id``, retried while another
+        writer changes the row under it (:class:`_Stale`).
+
+        With a ``write_id`` the write is recorded in ``applied_writes`` in the same
+        transaction; a write whose id is there already is not run again: ``again`` answers
+        with what the first run stored (``result`` of its answer).
+        """
+        if write_id is not None and (not isinstance(write_id, str) or not 0 < len(write_id) <= 64):
+            raise ProfileError(
+                f"write_id: must be a string of 1 to 64 characters (got {write_id!r:.60})"
+            )
+        for _ in range(MAX_ATTEMPTS):
+            try:
+                with self._session() as session:
+                    if write_id is not None:
+                        done = session.get(AppliedWriteRow, write_id)
+                        if done is not None:
+                            raise _AlreadyApplied(done.result)
+                    answer = change(session)
+                    if write_id is not None:
+                        session.add(
+                            AppliedWriteRow(
+                                write_id=write_id,
+                                user_id=user_id,
+                                result=result(answer),
+                                applied_at=datetime.now(UTC),
+                            )
+                        )
+                self._count_write(write_id)
+                return answer
+            except _Stale:
+                with self._count_lock:
+                    self.retries += 1
+                continue
+            except _AlreadyApplied as applied:
+                return again(applied.result)
+            except _Conflict:
+                # Two runs of one write at once (a writer stuck in flight and its replay):
+                # the other one's id is in now.
+                if write_id is not None:
+                    stored = self._applied(write_id)
+                    if stored is not None:
+                        return again(stored[0])
+                raise
+        raise StoreUnavailable(
+            f"the profile of {user_id!r} kept changing under {MAX_ATTEMPTS} tries; retry later"
+        )
+
+    def _applied(self, write_id: str) -> tuple[int | None] | None:
+        with self._session() as session:
+            row = session.get(AppliedWriteRow, write_id)
+            return None if row is None else (row.result,)
+
+    def _count_write(self, write_id: str | None) -> None:
+        if write_id is None:
+            return
+        with self._count_lock:
+            self._since_prune += 1
+            due = self._since_prune >= PRUNE_EVERY
+            if due:
+                self._since_prune = 0
+        if due:
+            with suppress(ProfileError):  # the next prune will do
+                self.prune_applied(datetime.now(UTC) - timedelta(days=APPLIED_KEEP_DAYS))
+
+    def prune_applied(self, before: datetime) -> int:
+        """Forget the ids of writes applied before ``before``; how many went."""
+        _check_time("before", before)
+        with self._session() as session:
+            gone = session.execute(
+                delete(AppliedWriteRow).where(AppliedWriteRow.applied_at < before)
+            )
+            return int(gone.rowcount)  # type: ignore[attr-defined]
+
+    def _field_write(
+        self, write_id: str | None, user_id: str, change: Callable[[UserRow], None]
+    ) -> Profile:
+        """A read-modify-write of the user's row: ``change`` edits the row as read; the
+        ORM writes it only if its version is still the one read, else it is run again
+        on the fresh row."""
+
+        def run(session: Session) -> Profile:
+            row = self._user(session, user_id)
+            change(row)
+            session.flush()
+            return snapshot(row)
+
+        return self._once(write_id, user_id, run, lambda _: self.get(user_id))
 
     # ------------------------------------------------------------------ profiles
 
     def get_or_create(self, user_id: str, now: datetime) -> Profile:
-        """Step 5: the user's profile, or a new empty one for a new user."""
+        """Step 5: the user's profile, or a new empty one for a new user.
+
+        Two robots meeting a new user at once make one profile (the second insert is a
+        no-op in the database)."""
         _check_user_id(user_id)
         _check_time("now", now)
+        values: dict[str, Any] = {
+            "user_id": user_id,
+            "created_at": now,
+            "updated_at": now,
+            "interaction_style": "voice",
+            "proactivity": "unknown",
+            "proactivity_confidence": 0.0,
+            "attributes": {},
+            "voice_failures": 0,
+            "screen_failures": 0,
+            "initiative_taken": 0,
+            "initiative_offered": 0,
+            "version": 1,
+        }
         try:
             with self._session() as session:
                 row = session.get(UserRow, user_id)
-                if row is None:
-                    row = UserRow(
-                        user_id=user_id,
-                        created_at=now,
-                        updated_at=now,
-                        interaction_style="voice",
-                        proactivity="unknown",
-                        proactivity_confidence=0.0,
-                        attributes={},
-                        voice_failures=0,
-                        screen_failures=0,
-                        initiative_taken=0,
-                        initiative_offered=0,
+                if row is not None:
+                    return snapshot(row)
+                if self._dialect in ("sqlite", "postgresql"):
+                    module: Any = sqlite if self._dialect == "sqlite" else postgresql
+                    session.execute(
+                        module.insert(UserRow.__table__)
+                        .values(values)
+                        .on_conflict_do_nothing(index_elements=["user_id"])
                     )
-                    session.add(row)
-                    session.flush()
-                return snapshot(row)
+                    return self._fresh(session, user_id)
+                session.add(UserRow(**values))
+                session.flush()
+                return self._fresh(session, user_id)
         except _Conflict:
             pass
         # Another writer created it between our read and our insert.
@@ -335,16 +530,27 @@ class ProfileStore:
         with self._session() as session:
             return snapshot(self._user(session, user_id))
 
-    def update(self, user_id: str, now: datetime, **fields: Any) -> Profile:
+    def update(
+        self,
+        user_id: str,
+        now: datetime,
+        *,
+        write_id: Any = None,  # str | None; Any so that callers may pass **fields: object
+        **fields: Any,
+    ) -> Profile:
         """Set profile fields or free attributes; None clears one.
+
+        Only the fields named are written, on the row as it is when the write lands: a
+        concurrent write of other fields or attributes is kept (``write_id``: see
+        :meth:`_once`).
 
         Raises:
             ProfileError: naming the field whose name or value is wrong (nothing is written).
         """
         _check_time("now", now)
         columns, attributes = validate_fields(fields)
-        with self._session() as session:
-            row = self._user(session, user_id)
+
+        def change(row: UserRow) -> None:
             for name, value in columns.items():
                 setattr(row, name, value)
             if attributes:
@@ -358,7 +564,8 @@ class ProfileStore:
                     raise ProfileError(f"attributes: at most {MAX_ATTRIBUTES} free attributes")
                 row.attributes = merged
             row.updated_at = now
-            return snapshot(row)
+
+        return self._field_write(write_id, user_id, change)
 
     def list_ids(self) -> list[str]:
         """Every stored user id, sorted."""
@@ -435,21 +642,38 @@ class ProfileStore:
             for part in _USER_DATA.values():
                 part.erase_user(session, user_id)
             # Explicit deletes, children first: no reliance on the backend's cascade.
-            for model in (AnswerRow, FeedbackRow, ActivityRunRow, SessionRow, ActivityScoreRow):
+            for model in (
+                AppliedWriteRow,
+                AnswerRow,
+                FeedbackRow,
+                ActivityRunRow,
+                SessionRow,
+                ActivityScoreRow,
+            ):
                 session.execute(delete(model).where(model.user_id == user_id))
             session.execute(delete(UserRow).where(UserRow.user_id == user_id))
 
     # ------------------------------------------------------------------ history
 
-    def start_session(self, user_id: str, now: datetime) -> int:
-        """A new interaction session; its id for :meth:`end_session` and runs."""
+    def start_session(self, user_id: str, now: datetime, write_id: str | None = None) -> int:
+        """A new interaction session; its id for :meth:`end_session` and runs.
+
+        With a ``write_id`` (the daemon's session key) a replay returns the same session."""
         _check_time("now", now)
-        with self._session() as session:
+
+        def change(session: Session) -> int:
             self._user(session, user_id)
             row = SessionRow(user_id=user_id, started_at=now)
             session.add(row)
             session.flush()
             return row.id
+
+        def again(result: int | None) -> int:
+            if result is None:
+                raise StoreRefused(f"write {write_id}: applied, but its session is gone")
+            return result
+
+        return self._once(write_id, user_id, change, again, result=lambda answer: answer)
 
     def end_session(
         self, session_id: int, now: datetime, metrics: dict[str, Any] | None = None
@@ -499,6 +723,7 @@ class ProfileStore:
         chosen_by: str,
         cancelled: bool,
         session_id: int | None = None,
+        write_id: str | None = None,
     ) -> Profile:
         """Log one activity run; a completion or cancellation updates the user's score."""
         _check_name("activity", activity)
@@ -510,8 +735,9 @@ class ProfileStore:
             raise ProfileError(f"cancelled: must be true or false (got {cancelled!r:.60})")
         if ended < started:
             raise ProfileError("ended: is before started")
-        with self._session() as session:
-            row = self._user(session, user_id)
+
+        def change(session: Session) -> Profile:
+            self._touch(session, user_id, ended)
             if session_id is not None and session.get(SessionRow, session_id) is None:
                 raise ProfileError(f"session_id: no session {session_id!r}")
             session.add(
@@ -526,16 +752,22 @@ class ProfileStore:
                     cancelled=cancelled,
                 )
             )
-            if cancelled or outcome in COMPLETED_OUTCOMES:
-                score = self._score(session, row, activity)
-                if cancelled:
-                    score.cancellations += 1
-                else:
-                    score.completions += 1
-            row.updated_at = max(row.updated_at, ended)
-            return snapshot(row)
+            if cancelled:
+                self._bump_score(session, user_id, activity, cancellations=1)
+            elif outcome in COMPLETED_OUTCOMES:
+                self._bump_score(session, user_id, activity, completions=1)
+            return self._fresh(session, user_id)
 
-    def record_feedback(self, user_id: str, activity: str, score: float, now: datetime) -> Profile:
+        return self._once(write_id, user_id, change, lambda _: self.get(user_id))
+
+    def record_feedback(
+        self,
+        user_id: str,
+        activity: str,
+        score: float,
+        now: datetime,
+        write_id: str | None = None,
+    ) -> Profile:
         """Step 7: how much the user liked ``activity``, 0 (not at all) to 1 (a lot)."""
         _check_name("activity", activity)
         _check_time("now", now)
@@ -546,16 +778,25 @@ class ProfileStore:
             or not 0 <= score <= 1
         ):
             raise ProfileError(f"score: must be a number between 0 and 1 (got {score!r:.60})")
-        with self._session() as session:
-            row = self._user(session, user_id)
-            session.add(FeedbackRow(user_id=user_id, activity=activity, score=float(score), at=now))
-            entry = self._score(session, row, activity)
-            entry.feedback_sum += float(score)
-            entry.feedback_count += 1
-            row.updated_at = now
-            return snapshot(row)
 
-    def record_answer(self, user_id: str, question_id: str, answer: str, now: datetime) -> Profile:
+        def change(session: Session) -> Profile:
+            self._touch(session, user_id, now)
+            session.add(FeedbackRow(user_id=user_id, activity=activity, score=float(score), at=now))
+            self._bump_score(
+                session, user_id, activity, feedback_sum=float(score), feedback_count=1
+            )
+            return self._fresh(session, user_id)
+
+        return self._once(write_id, user_id, change, lambda _: self.get(user_id))
+
+    def record_answer(
+        self,
+        user_id: str,
+        question_id: str,
+        answer: str,
+        now: datetime,
+        write_id: str | None = None,
+    ) -> Profile:
         """Step 8: log an answer to a general question and store the fields it fills."""
         from memory.questions import QuestionBank
 
@@ -567,7 +808,8 @@ class ProfileStore:
         question = bank.get(question_id)
         applied = bank.parse(question, answer) if question is not None else None
         columns, attributes = validate_fields(applied or {})
-        with self._session() as session:
+
+        def change(session: Session) -> Profile:
             row = self._user(session, user_id)
             session.add(
                 AnswerRow(
@@ -581,7 +823,10 @@ class ProfileStore:
             if "robot_initiative_frequency" in columns:  # seeds the proactivity estimate
                 self._estimate_proactivity(row)
             row.updated_at = now
+            session.flush()
             return snapshot(row)
+
+        return self._once(write_id, user_id, change, lambda _: self.get(user_id))
 
     @staticmethod
     def _estimate_proactivity(row: UserRow) -> None:
@@ -596,7 +841,12 @@ class ProfileStore:
         row.proactivity_confidence = confidence
 
     def record_interaction(
-        self, user_id: str, channel: str, answered: bool, now: datetime
+        self,
+        user_id: str,
+        channel: str,
+        answered: bool,
+        now: datetime,
+        write_id: str | None = None,
     ) -> Profile:
         """Table 2: count unanswered prompts per channel; after
         :data:`FAILURES_TO_SWITCH` in a row on the current style, switch to the other."""
@@ -606,8 +856,8 @@ class ProfileStore:
             raise ProfileError(f"answered: must be true or false (got {answered!r:.60})")
         _check_time("now", now)
         attribute = f"{channel}_failures"
-        with self._session() as session:
-            row = self._user(session, user_id)
+
+        def change(row: UserRow) -> None:
             if answered:
                 setattr(row, attribute, 0)
             else:
@@ -617,23 +867,27 @@ class ProfileStore:
                     row.interaction_style = "screen" if channel == "voice" else "voice"
                     setattr(row, attribute, 0)
             row.updated_at = now
-            return snapshot(row)
 
-    def record_initiative(self, user_id: str, took_initiative: bool, now: datetime) -> Profile:
+        return self._field_write(write_id, user_id, change)
+
+    def record_initiative(
+        self, user_id: str, took_initiative: bool, now: datetime, write_id: str | None = None
+    ) -> Profile:
         """Count a chance to take the initiative; re-estimate proactivity and its confidence."""
         if not isinstance(took_initiative, bool):
             raise ProfileError(
                 f"took_initiative: must be true or false (got {took_initiative!r:.60})"
             )
         _check_time("now", now)
-        with self._session() as session:
-            row = self._user(session, user_id)
+
+        def change(row: UserRow) -> None:
             row.initiative_taken, row.initiative_offered = proactivity.forget(
                 row.initiative_taken + int(took_initiative), row.initiative_offered + 1
             )
             self._estimate_proactivity(row)
             row.updated_at = now
-            return snapshot(row)
+
+        return self._field_write(write_id, user_id, change)
 
     # ------------------------------------------------------------------ training data
 

@@ -14,7 +14,15 @@ from memory.schema_history import SchemaHistory
 
 VERSION_TABLE = "alembic_version_memory"
 HERE = Path(__file__).resolve().parent
-TABLES = ("users", "activity_scores", "sessions", "activity_runs", "feedback", "answers")
+TABLES = (
+    "users",
+    "activity_scores",
+    "sessions",
+    "activity_runs",
+    "feedback",
+    "answers",
+    "applied_writes",
+)
 
 HISTORY = SchemaHistory(HERE, VERSION_TABLE, TABLES)
 head = HISTORY.head

@@ -54,7 +54,7 @@ def _fill(store: ProfileStore, agenda: Agenda) -> None:
         store.update(user, NOW, name=user.title(), age=80)
         session = store.start_session(user, NOW)
         store.record_activity(user, "quiz", NOW, NOW + HOUR, "completed", "robot", False, session)
-        store.record_feedback(user, "quiz", 1.0, NOW)
+        store.record_feedback(user, "quiz", 1.0, NOW, write_id=f"{user}-feedback")  # as daemons do
         store.record_feedback(user, "dance", 0.2, NOW)
         store.record_answer(user, "favorite_music", "boleros", NOW)
         store.end_session(session, NOW + HOUR)
