@@ -2,7 +2,8 @@
 
 ``main`` runs it so that every failure a person can cause (a bad flag, a bad file,
 a database that cannot be opened) ends as one ``dms: ...`` line on stderr and a
-non-zero exit, never a traceback.
+non-zero exit, never a traceback. ``dms --version`` prints the installed version;
+``dms --install-completion`` installs typer's shell completion (bash, zsh, fish).
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import typer
 
@@ -38,8 +39,38 @@ app = typer.Typer(
     help="A biologically inspired decision daemon for social robots like Mini.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
-    add_completion=False,
+    add_completion=True,
 )
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("dms")
+    except PackageNotFoundError:  # a source tree that was never installed
+        return "unknown (not installed)"
+
+
+def _show_version(value: bool) -> None:
+    if value:
+        typer.echo(f"dms {_version()}")
+        raise typer.Exit(0)
+
+
+@app.callback()
+def _main(
+    _version_flag: Annotated[
+        bool,
+        typer.Option(
+            "--version",
+            callback=_show_version,
+            is_eager=True,
+            help="Print the version and exit.",
+        ),
+    ] = False,
+) -> None:
+    """A biologically inspired decision daemon for social robots like Mini."""
 
 
 db_app = typer.Typer(no_args_is_help=True)
@@ -105,24 +136,85 @@ def schema(
         typer.echo(str(path))
 
 
+def _setting(help_text: str, default: str, env: str) -> str:
+    """The help of a ``dms run`` flag whose value may also come from the TOML file or
+    the environment (the flag wins; docs/configuration.md)."""
+    return f"{help_text} Default: {default}; environment: {env}."
+
+
 @app.command()
 def run(
-    config: Annotated[Path | None, typer.Option(help="TOML configuration file.")] = None,
-    robot_id: Annotated[str | None, typer.Option("--robot-id", help="Robot id.")] = None,
-    db: Annotated[str | None, typer.Option(help="SQLAlchemy database URL.")] = None,
-    listen: Annotated[list[str] | None, typer.Option(help="Zenoh endpoint to listen on.")] = None,
-    connect: Annotated[list[str] | None, typer.Option(help="Zenoh endpoint to connect to.")] = None,
-    zenoh_config: Annotated[
-        Path | None, typer.Option("--zenoh-config", help="Zenoh JSON5 configuration file.")
+    config: Annotated[
+        Path | None,
+        typer.Option(envvar="DMS_CONFIG", help="TOML configuration file.", show_default=False),
     ] = None,
-    robot: Annotated[str | None, typer.Option(help="sim (in-process) or zenoh.")] = None,
-    seed: Annotated[int | None, typer.Option(help="Seed of the random generator.")] = None,
+    robot_id: Annotated[
+        str | None,
+        typer.Option("--robot-id", help=_setting("Robot id.", "mini", "DMS_ROBOT_ID")),
+    ] = None,
+    db: Annotated[
+        str | None,
+        typer.Option(
+            help=_setting(
+                "SQLAlchemy database URL or SQLite file.", "the user's data folder", "DMS_DB"
+            )
+        ),
+    ] = None,
+    listen: Annotated[
+        list[str] | None,
+        typer.Option(
+            help=_setting("Zenoh endpoint to listen on.", "tcp/127.0.0.1:7447", "DMS_ZENOH__LISTEN")
+        ),
+    ] = None,
+    connect: Annotated[
+        list[str] | None,
+        typer.Option(help=_setting("Zenoh endpoint to connect to.", "none", "DMS_ZENOH__CONNECT")),
+    ] = None,
+    zenoh_config: Annotated[
+        Path | None,
+        typer.Option(
+            "--zenoh-config",
+            help=_setting("Zenoh JSON5 configuration file.", "none", "DMS_ZENOH__CONFIG_FILE"),
+        ),
+    ] = None,
+    robot: Annotated[
+        Literal["sim", "zenoh"] | None,
+        typer.Option(
+            help=_setting(
+                "The robot: sim (the simulated Mini, in-process) or zenoh (a real one).",
+                "sim",
+                "DMS_ROBOT",
+            )
+        ),
+    ] = None,
+    seed: Annotated[
+        int | None,
+        typer.Option(help=_setting("Seed of the random generator.", "random", "DMS_SEED")),
+    ] = None,
+    log_level: Annotated[
+        Literal["debug", "info", "warning", "error"] | None,
+        typer.Option(help=_setting("The least severe log line written.", "info", "DMS_LOG_LEVEL")),
+    ] = None,
+    log_format: Annotated[
+        Literal["text", "json"] | None,
+        typer.Option(
+            help=_setting(
+                "Log lines on stderr as text or as JSON objects.", "text", "DMS_LOG_FORMAT"
+            )
+        ),
+    ] = None,
     visitor: Annotated[
-        str | None, typer.Option(help="Run a simulated visitor (a persona name) beside it.")
+        str | None,
+        typer.Option(
+            help="Run a simulated visitor (a persona name) beside it.", show_default=False
+        ),
     ] = None,
     quiet: Annotated[bool, typer.Option(help="Do not print decisions.")] = False,
 ) -> None:
-    """Run the daemon until SIGINT or SIGTERM."""
+    """Run the daemon until SIGINT or SIGTERM (SIGHUP reloads the rules and behaviors).
+
+    A setting comes from its flag, else its DMS_* variable, else the TOML, else its default.
+    """
     from dms.config import load_config
     from dms.daemon import run_daemon
 
@@ -135,6 +227,8 @@ def run(
         zenoh_config=zenoh_config,
         robot=robot,
         seed=seed,
+        log_level=log_level,
+        log_format=log_format,
     )
     raise typer.Exit(
         run_daemon(

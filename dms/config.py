@@ -1,7 +1,14 @@
-"""The daemon's configuration: a TOML file, then command-line flags on top.
+"""The daemon's configuration: defaults, a TOML file, ``DMS_*`` environment variables,
+then command-line flags, each over the one before (docs/configuration.md).
+
+Every setting has an environment variable: ``DMS_`` and its name in capitals, with
+``__`` between a section and its field (``DMS_DB``, ``DMS_ROBOT_ID``,
+``DMS_CONTROLLER__TICK_PERIOD_S``); lists and tables are JSON
+(``DMS_ZENOH__CONNECT='["tcp/10.0.0.2:7447"]'``). pydantic-settings reads them.
 
 Every section is validated by pydantic; a wrong value is reported as one line naming
-the file, the field and what was wrong (:class:`dms.kernel.errors.ConfigError`).
+the file or the variable, the field and what was wrong
+(:class:`dms.kernel.errors.ConfigError`).
 """
 
 from __future__ import annotations
@@ -11,6 +18,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic_settings import BaseSettings, EnvSettingsSource, SettingsConfigDict
 
 from dms.kernel.errors import ConfigError
 from dms.kernel.keys import INPUT_KEYS, ROBOT_ID_RE
@@ -139,6 +147,10 @@ class Settings(_Section):
     robot: Literal["sim", "zenoh"] = "sim"
     seed: int | None = None
     timezone: str = "UTC"
+    log_level: Literal["debug", "info", "warning", "error"] = "info"
+    """The least severe log record written to stderr."""
+    log_format: Literal["text", "json"] = "text"
+    """Log lines as text, or one JSON object a line (with the structured fields)."""
     zenoh: ZenohSettings = Field(default_factory=ZenohSettings)
     inputs: InputSettings = Field(default_factory=InputSettings)
     controller: ControllerSettings = Field(default_factory=ControllerSettings)
@@ -157,11 +169,66 @@ class Settings(_Section):
         return value
 
 
-def _describe(error: ValidationError, where: str) -> str:
+ENV_PREFIX = "DMS_"
+ENV_NESTED = "__"
+
+
+class _Environment(BaseSettings, Settings):
+    """Only to tell pydantic-settings where :class:`Settings` is in the environment."""
+
+    model_config = SettingsConfigDict(
+        env_prefix=ENV_PREFIX, env_nested_delimiter=ENV_NESTED, extra="forbid"
+    )
+
+
+def environment() -> dict[str, Any]:
+    """The settings ``DMS_*`` environment variables give, as nested raw values."""
+    try:
+        found = EnvSettingsSource(_Environment)()
+    except Exception as error:  # pydantic-settings' SettingsError: a JSON value is not JSON
+        raise ConfigError(f"environment: {error}") from None
+    found.pop("source", None)
+    return found
+
+
+def env_name(loc: Sequence[int | str]) -> str:
+    """The environment variable of a field's location (``("zenoh", "connect")``)."""
+    return ENV_PREFIX + ENV_NESTED.join(str(part) for part in loc).upper()
+
+
+def _describe(error: ValidationError, where: str, env: dict[str, Any] | None = None) -> str:
     first = error.errors(include_url=False)[0]
     field = ".".join(str(part) for part in first["loc"]) or "(top level)"
     more = f" (and {error.error_count() - 1} more)" if error.error_count() > 1 else ""
+    if env and _given(env, first["loc"]):
+        where = f"{env_name(first['loc'][:2])} (environment)"
     return f"{where}: {field}: {first['msg']}{more}"
+
+
+def _given(data: dict[str, Any], loc: Sequence[int | str]) -> bool:
+    """Whether ``data`` holds a value at the start of ``loc`` (its section's field)."""
+    node: Any = data
+    for part in loc[:2]:
+        if not isinstance(node, dict) or part not in node:
+            return False
+        node = node[part]
+    return True
+
+
+def _merge(base: dict[str, Any], top: dict[str, Any]) -> dict[str, Any]:
+    """``top`` over ``base``, table by table (a section's other fields stay)."""
+    merged = dict(base)
+    for key, value in top.items():
+        below = merged.get(key)
+        if isinstance(value, dict) and isinstance(below, dict) and key not in _WHOLE:
+            merged[key] = _merge(below, value)
+        else:
+            merged[key] = value
+    return merged
+
+
+_WHOLE = frozenset({"stale_after_s", "rate_cap_per_s", "user_initiative"})
+"""Tables that are values (a map of keys), replaced whole rather than merged."""
 
 
 def load_config(
@@ -174,11 +241,27 @@ def load_config(
     zenoh_config: Path | None = None,
     robot: str | None = None,
     seed: int | None = None,
+    log_level: str | None = None,
+    log_format: str | None = None,
+    use_environment: bool = True,
 ) -> Settings:
-    """Read ``path`` (TOML) if given, then apply the flags that were set."""
+    """The settings: defaults, then ``path`` (TOML) if given, then the ``DMS_*``
+    environment variables (unless ``use_environment`` is False), then the flags that
+    were set; each over the one before."""
     data: dict[str, Any] = read_toml(path) if path is not None else {}
     where = str(path) if path is not None else "configuration"
-    flags: dict[str, Any] = {"robot_id": robot_id, "db": db, "robot": robot, "seed": seed}
+    if path is not None:
+        _resolve_paths(data, path.parent)
+    env = environment() if use_environment else {}
+    data = _merge(data, env)
+    flags: dict[str, Any] = {
+        "robot_id": robot_id,
+        "db": db,
+        "robot": robot,
+        "seed": seed,
+        "log_level": log_level,
+        "log_format": log_format,
+    }
     data.update({name: value for name, value in flags.items() if value is not None})
     zenoh = dict(data.get("zenoh") or {})
     if listen:
@@ -194,15 +277,25 @@ def load_config(
     try:
         settings = Settings.model_validate(data)
     except ValidationError as error:
-        raise ConfigError(_describe(error, where)) from None
+        from_env = {name: value for name, value in env.items() if flags.get(name) is None}
+        raise ConfigError(_describe(error, where, from_env)) from None
     settings.source = path
-    if path is not None:
-        base = path.parent
-        settings.rules.files = [f if f.is_absolute() else base / f for f in settings.rules.files]
-        folder = settings.behaviors.folder
-        if folder is not None and not folder.is_absolute():
-            settings.behaviors.folder = base / folder
     folder = settings.behaviors.folder
     if folder is not None and not folder.is_dir():
         raise ConfigError(f"{where}: behaviors.folder: {folder} is not a directory")
     return settings
+
+
+def _resolve_paths(data: dict[str, Any], base: Path) -> None:
+    """The file's relative paths (rules, behaviors) are relative to the file's folder."""
+    rules = data.get("rules")
+    if isinstance(rules, dict) and isinstance(rules.get("files"), list):
+        rules["files"] = [
+            str(base / f) if isinstance(f, str) and not Path(f).is_absolute() else f
+            for f in rules["files"]
+        ]
+    behaviors = data.get("behaviors")
+    if isinstance(behaviors, dict) and isinstance(behaviors.get("folder"), str):
+        folder = Path(behaviors["folder"])
+        if not folder.is_absolute():
+            behaviors["folder"] = str(base / folder)

@@ -5,6 +5,10 @@ The loop ticks at 2 Hz against monotonic deadlines and at once when an urgent in
 published on ``dms/decision`` and printed, then the state on ``dms/state``. The
 ``alive/dms`` token is declared only once everything is ready. SIGINT and SIGTERM
 stop the running activity, flush the store and exit 0; SIGHUP reloads the rules and the behaviors.
+
+Under systemd (``Type=notify``) it says READY once ``alive/dms`` is declared and feeds
+the watchdog from the tick loop (:mod:`dms.notify`). Its log goes to stderr at
+``--log-level`` in ``--log-format`` (:mod:`dms.logs`); ticks the loop missed are logged.
 """
 
 from __future__ import annotations
@@ -12,7 +16,6 @@ from __future__ import annotations
 import logging
 import random
 import signal
-import sys
 import threading
 from collections.abc import Callable
 from pathlib import Path
@@ -40,6 +43,8 @@ from dms.kernel.messages import (
 )
 from dms.kernel.ports import RobotPort
 from dms.local_bus import InMemoryBus
+from dms.logs import setup_logging
+from dms.notify import Notifier
 from dms.rate_caps import RateCaps
 from dms.reloader import Reloader
 from dms.robot_link import ZenohRobot
@@ -101,10 +106,14 @@ class Daemon:
         bus: ZenohBus | InMemoryBus | None = None,
         clock: Clock | None = None,
         sim_robot: Callable[[int], RobotPort] | None = None,
+        notifier: Notifier | None = None,
     ) -> None:
         """``sim_robot`` makes the in-process robot from the seed when ``settings.robot`` is
-        not ``zenoh``: the composition root (dms/cli.py) passes the simulated Mini."""
+        not ``zenoh``: the composition root (dms/cli.py) passes the simulated Mini.
+        ``notifier`` tells systemd (READY, WATCHDOG); by default from ``$NOTIFY_SOCKET``."""
         self.settings = settings
+        self.notifier = notifier or Notifier()
+        self._missed_logged = 0
         self._said: list[str] = []  # what the robot said this tick, printed after the decisions
         self.clock: Clock = clock or RealClock()
         self.print_decisions = print_decisions
@@ -281,6 +290,8 @@ class Daemon:
                 log.info("agenda item %s fell due while the daemon was down", item.item_id)
         self._run_tick(urgent=False)
         self.bus.declare_alive()
+        self.notifier.ready(f"robot {self.settings.robot_id} alive")
+        self.notifier.watchdog()
         self.stack.when_ready()  # work that can wait (training) starts after ready
 
     def _run_tick(self, urgent: bool) -> TickRecord | None:
@@ -324,9 +335,27 @@ class Daemon:
             self.print_decisions = False
 
     def loop(self) -> None:
-        """Tick until :meth:`stop`."""
+        """Tick until :meth:`stop`; each tick feeds systemd's watchdog (when there is one)
+        and logs the ticks missed since the last one (the loop fell behind)."""
         for _timing, urgent in self.ticker:
             self._run_tick(urgent)
+            self.notifier.watchdog()
+            self._log_missed()
+
+    def _log_missed(self) -> None:
+        missed = self.ticker.missed
+        if missed == self._missed_logged:
+            return
+        behind = missed - self._missed_logged
+        self._missed_logged = missed
+        period = self.settings.controller.tick_period_s
+        log.warning(
+            "missed %d tick(s): the loop fell %.2f s behind (%d missed since start)",
+            behind,
+            behind * period,
+            missed,
+            extra={"event": "missed_ticks", "missed": behind, "missed_total": missed},
+        )
 
     def stop(self) -> None:
         self.ticker.stop()
@@ -337,6 +366,7 @@ class Daemon:
 
     def close(self) -> None:
         """Stop the running activity, flush the store, leave Zenoh."""
+        self.notifier.stopping()
         self.reloader.stop()
         try:
             with self._lock:
@@ -347,6 +377,7 @@ class Daemon:
                 self.stack.close()
             finally:
                 self.bus.close()
+                self.notifier.close()
 
 
 def run_daemon(
@@ -362,9 +393,7 @@ def run_daemon(
     The composition root (dms/cli.py) passes the simulated robot and the visitor starter,
     so that the daemon does not import ``sim``.
     """
-    logging.basicConfig(
-        level=logging.WARNING, format="%(asctime)s %(levelname)s %(name)s: %(message)s"
-    )
+    setup_logging(settings.log_level, settings.log_format, robot_id=settings.robot_id)
     daemon = Daemon(settings, print_decisions=print_decisions, sim_robot=sim_robot)
 
     def on_stop(_signum: int, _frame: FrameType | None) -> None:
@@ -380,10 +409,11 @@ def run_daemon(
     try:
         daemon.start()
         where = ", ".join(settings.zenoh.listen) or f"the endpoints of {settings.zenoh.config_file}"
-        print(
-            f"dms: robot {settings.robot_id} ready on {where} (alive/dms declared); Ctrl-C stops",
-            file=sys.stderr,
-            flush=True,
+        log.info(
+            "robot %s ready on %s (alive/dms declared); Ctrl-C stops",
+            settings.robot_id,
+            where,
+            extra={"event": "ready", "listen": settings.zenoh.listen},
         )
         if visitor is not None:
             if start_visitor is None:
