@@ -94,3 +94,20 @@ class OccurrenceRow(Base):
     count: Mapped[int] = mapped_column(Integer)
     recorded_at: Mapped[datetime] = mapped_column(UtcDateTime())
     reason: Mapped[str] = mapped_column(Text)
+
+
+class ClaimRow(Base):
+    """Which robot took one occurrence of an item: the fleet's guard against twice.
+
+    A robot that sees the item's user inserts the row before it delivers; the primary key
+    lets one robot in (``INSERT ... ON CONFLICT DO NOTHING``: the other one's insert
+    changes no row). The row outlives the delivery by :data:`agenda.service.CLAIMS_KEEP_S`.
+    """
+
+    __tablename__ = "agenda_claims"
+
+    item_id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    fire_time: Mapped[datetime] = mapped_column(UtcDateTime(), primary_key=True)
+    user_id: Mapped[str] = mapped_column(String(64), index=True)
+    claimed_by: Mapped[str] = mapped_column(String(200))
+    claimed_at: Mapped[datetime] = mapped_column(UtcDateTime())

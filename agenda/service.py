@@ -21,14 +21,29 @@ writes and reads run on one background thread, in order. Database I/O never hold
 index's lock (``_lock``), only ``_io_lock``, which serializes it; so a locked or absent
 database never stalls the tick. Lock order: ``_io_lock`` before ``_lock``, never the
 other way; ``_journal_lock`` comes after both.
+
+Several robots share one agenda (docs/fleet.md). An occurrence is *claimed* before
+:meth:`Agenda.due` returns it: a row in ``agenda_claims`` keyed by (item, fire time),
+inserted with ``ON CONFLICT DO NOTHING``, so of two robots that see the user in the same
+second one gets it and the other never returns it (it records it missed at the end of
+the grace time if nobody delivered it; a delivery wins over such a miss in the log).
+Without the database no claim can be made: on a server database the occurrence waits
+(it is claimed when the database is back, or missed), on a SQLite file, which only robots
+on one machine share, it is delivered anyway (``offline_delivery``). Items added
+elsewhere (another robot, the command line) are polled for every :data:`POLL_S` of the
+caller's clock, and the whole agenda is reloaded every :data:`RELOAD_S`.
 """
 
 from __future__ import annotations
 
 import logging
+import os
+import socket
 import threading
+import uuid
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import wait as wait_for
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
@@ -62,7 +77,7 @@ from agenda.items import (
     Priority,
     UpcomingItem,
 )
-from agenda.models import ItemRow, OccurrenceRow
+from agenda.models import ClaimRow, ItemRow, OccurrenceRow, UtcDateTime
 from agenda.schedule import (
     MAX_EVERY_S,
     Schedule,
@@ -90,6 +105,23 @@ MAX_LEAD_S = 86400
 MAX_GRACE_S = 7 * 86400
 MAX_TEXT = 500
 
+
+CLAIM_WAIT_S = 0.05
+"""How long :meth:`Agenda.due` waits for a claim made off the tick (``background``):
+enough for a healthy database, so the item comes out in the same tick; else it comes
+out of a later one."""
+CLAIM_RETRY_S = 2
+"""Between claims of one occurrence while the database cannot be reached."""
+POLL_S = 10
+"""Between reads of items added since the last one (by another robot, the command line)."""
+POLL_OVERLAP = 100
+"""Ids below the highest seen that a poll reads again (ids committed out of order)."""
+RELOAD_S = 300
+"""Between reloads of every item (items removed elsewhere, cursors moved elsewhere)."""
+CLAIMS_KEEP_S = MAX_GRACE_S + MAX_LEAD_S + 86400
+"""How long a claim is kept after its fire time: past it the occurrence is settled."""
+
+_MINE, _THEIRS, _PENDING, _RETRY = "mine", "theirs", "pending", "retry"
 
 JOURNAL_SUFFIX = "agenda-spool"
 """The journal's file: ``<db file>.agenda-spool``, or in the state folder for a server."""
@@ -130,13 +162,31 @@ class Agenda:
         user_exists: Callable[[str], bool] | None = None,
         background: bool = False,
         journal: bool | None = None,
+        claimer: str | None = None,
+        offline_delivery: bool | None = None,
+        poll_s: float | None = POLL_S,
     ) -> None:
         """Open the agenda at ``url``, replay its journal and load every item.
 
         ``journal``: keep deliveries and misses in the fsync'd journal until the database
         has them (default: with ``background``, i.e. in the daemon). Only one process may
         journal for a database: the command line never does.
+
+        ``claimer``: who claims occurrences, the robot's id (a robot restarted after a
+        claim delivers what it claimed); default: one made for this process.
+        ``offline_delivery``: deliver an occurrence that cannot be claimed because the
+        database is away (default: on a SQLite file only). ``poll_s``: between polls for
+        items added elsewhere, of the caller's clock (None: never).
         """
+        self.claimer = claimer or f"{socket.gethostname()}-{os.getpid()}-{uuid.uuid4().hex[:8]}"
+        self._claims: dict[tuple[int, int], tuple[str, int]] = {}
+        """(item, fire time) -> (state, retry time): what this robot knows of its claims."""
+        self._poll_us = None if poll_s is None else round(poll_s * US_PER_S)
+        self._poll_at_us: int | None = None
+        self._reload_at_us: int | None = None
+        self._high_id = 0
+        self.claims_lost = 0
+        """Occurrences another robot claimed first."""
         self._user_exists = user_exists
         self._lock = threading.RLock()
         self._io_lock = threading.Lock()
@@ -162,6 +212,11 @@ class Agenda:
         try:
             self._prepare_schema()
             self._sessions = sessionmaker(self._engine, expire_on_commit=False)
+            self._offline_delivery = (
+                self._engine.dialect.name == "sqlite"
+                if offline_delivery is None
+                else offline_delivery
+            )
             path = journal_path(url) if (background if journal is None else journal) else None
             if path is not None:
                 self._journal = Spool(path)
@@ -233,15 +288,18 @@ class Agenda:
                     )
         self._queue.extend(_Record(int(e["item_id"]), e, journaled) for e in entries)
 
-    def _offload(self, job: Callable[[], None]) -> None:
-        """Run ``job`` on the background thread, or at once without one (never under _lock)."""
+    def _offload(self, job: Callable[[], None]) -> Future[None] | None:
+        """Run ``job`` on the background thread, or at once without one (never under _lock).
+
+        Returns the background job's future (None when it ran at once or was refused)."""
         if self._jobs is None:
             job()
-            return
+            return None
         try:
-            self._jobs.submit(self._guarded, job)
+            return self._jobs.submit(self._guarded, job)
         except RuntimeError:  # shut down: the caller is closing, close() flushes
             log.warning("agenda: closing, %s left to close()", getattr(job, "__name__", job))
+            return None
 
     @staticmethod
     def _guarded(job: Callable[[], None]) -> None:
@@ -259,7 +317,14 @@ class Agenda:
             installed = migrations.installed(connection)
             tables = set(inspect(connection).get_table_names())
         if revision == head:
-            missing = [name for name in (ItemRow.__tablename__, OccurrenceRow.__tablename__)]
+            missing = [
+                name
+                for name in (
+                    ItemRow.__tablename__,
+                    OccurrenceRow.__tablename__,
+                    ClaimRow.__tablename__,
+                )
+            ]
             missing = [name for name in missing if name not in tables]
             if missing:
                 raise AgendaError(
@@ -318,6 +383,7 @@ class Agenda:
                 raise AgendaError(f"cannot store the agenda item: {_one_line(error)}") from None
             with self._lock:
                 self._index.put(self._entry(item, schedule))
+                self._high_id = max(self._high_id, item.item_id)
             return item
 
     def get(self, item_id: int) -> AgendaItem:
@@ -396,23 +462,126 @@ class Agenda:
             return self._index.all_waiting()
 
     def due(self, now: datetime, present_user: str | None) -> list[DueItem]:
-        """What is due now for ``present_user``, highest priority first. Called every tick.
+        """What is due now for ``present_user`` and claimed by this robot, highest priority
+        first. Called every tick.
 
         Items of absent users wait up to their grace time and are then recorded as
-        missed by this call.
+        missed by this call. An item waiting for the present user is claimed first
+        (off the tick with ``background``, waiting at most :data:`CLAIM_WAIT_S`); one
+        another robot claimed is never returned.
         """
         now_us = to_us(now)
-        flush = False
+        flush = poll = False
         with self._lock:
             if self._index.has_work(now_us):
                 self._advance(now_us, down=False)
             if self._flush_at_us is not None and now_us >= self._flush_at_us:
                 flush = True
                 self._flush_at_us = now_us + RETRY_AFTER_S * US_PER_S  # unless it succeeds
+            if self._poll_us is not None:
+                if self._poll_at_us is None:
+                    self._poll_at_us = now_us + self._poll_us
+                elif now_us >= self._poll_at_us:
+                    poll = True
+                    self._poll_at_us = now_us + self._poll_us
             waiting = [] if present_user is None else self._index.waiting_for(present_user)
+            to_claim = [item for item in waiting if self._needs_claim(item, now_us)]
+            for item in to_claim:
+                self._claims[_key(item)] = (_PENDING, 0)
         if flush:
             self._offload(self._flush_or_retry(now_us))
-        return waiting
+        if poll:
+            self._offload(self._poll(now_us))
+        if to_claim:
+            future = self._offload(self._claim_job(to_claim, now_us))
+            if future is not None:
+                wait_for([future], timeout=CLAIM_WAIT_S)
+        if not waiting:
+            return []
+        assert present_user is not None
+        with self._lock:
+            return [
+                item
+                for item in self._index.waiting_for(present_user)
+                if self._claims.get(_key(item), ("", 0))[0] == _MINE
+            ]
+
+    def claim(self, item: DueItem, now: datetime) -> bool:
+        """Claim one occurrence for this robot now, in the database; whether it is ours.
+
+        What :meth:`due` does for each item it returns; True again for an occurrence
+        this robot (this ``claimer``) claimed before, False once another robot has it.
+        """
+        now_us = to_us(now)
+        self._claim_job([item], now_us)()
+        with self._lock:
+            return self._claims.get(_key(item), ("", 0))[0] == _MINE
+
+    def _needs_claim(self, item: DueItem, now_us: int) -> bool:
+        """``_lock`` held: whether ``item`` must be claimed (again) now."""
+        state, retry_us = self._claims.get(_key(item), ("", 0))
+        return state == "" or (state == _RETRY and now_us >= retry_us)
+
+    def _claim_job(self, items: list[DueItem], now_us: int) -> Callable[[], None]:
+        """A job that claims ``items`` in one transaction and notes the outcomes."""
+
+        def claim() -> None:
+            try:
+                with self._io_lock, self._engine.begin() as connection:
+                    outcomes = [_claim(connection, item, self.claimer, now_us) for item in items]
+            except SQLAlchemyError as error:
+                offline = self._offline_delivery
+                log.warning(
+                    "agenda: cannot claim %s: %s; %s",
+                    ", ".join(f"item {item.item_id}" for item in items),
+                    _one_line(error),
+                    "delivering without a claim"
+                    if offline
+                    else f"it waits, retrying in {CLAIM_RETRY_S} s",
+                )
+                state = (_MINE, 0) if offline else (_RETRY, now_us + CLAIM_RETRY_S * US_PER_S)
+                with self._lock:
+                    for item in items:
+                        self._claims[_key(item)] = state
+                return
+            with self._lock:
+                for item, outcome in zip(items, outcomes, strict=True):
+                    if outcome is None:  # removed elsewhere
+                        self._claims.pop(_key(item), None)
+                        self._index.drop(item.item_id)
+                        continue
+                    if outcome == _THEIRS and self._claims.get(_key(item), ("", 0))[0] != _THEIRS:
+                        self.claims_lost += 1
+                    self._claims[_key(item)] = (outcome, 0)
+
+        return claim
+
+    def _poll(self, now_us: int) -> Callable[[], None]:
+        """A job that reads the items added since the last poll (or every item, now and
+        then) and, on a reload, forgets claims long settled."""
+
+        def poll() -> None:
+            reload = self._reload_at_us is None or now_us >= self._reload_at_us
+            try:
+                if reload:
+                    self._reload_at_us = now_us + RELOAD_S * US_PER_S
+                    self._load(None)
+                    with self._io_lock, self._engine.begin() as connection:
+                        before = from_us(now_us - CLAIMS_KEEP_S * US_PER_S)
+                        connection.execute(delete(ClaimRow).where(ClaimRow.fire_time < before))
+                    return
+                query = select(ItemRow).where(
+                    ItemRow.id > self._high_id - POLL_OVERLAP, ItemRow.next_fire.is_not(None)
+                )
+                with self._io_lock, self._sessions() as session:
+                    rows = list(session.scalars(query))
+                with self._lock:
+                    self._apply_rows(rows, None, drop=False)
+                    self._advance(now_us, down=False)
+            except SQLAlchemyError as error:
+                log.warning("agenda: cannot read new items: %s", _one_line(error))
+
+        return poll
 
     def delivered(self, item: DueItem, now: datetime) -> None:
         """``item`` was started or spoken: log it and schedule its next occurrence.
@@ -428,7 +597,10 @@ class Agenda:
             cursor = self._index.next_after_delivery(item.item_id, fire_us)
             stored = self._index.entries[item.item_id].item
             self._index.delivered(item.item_id, cursor)
-            self._enqueue([_delivery_entry(stored, fire_us, now_us, cursor)])
+            self._claims.pop((item.item_id, fire_us), None)
+            entry = _delivery_entry(stored, fire_us, now_us, cursor)
+            entry["claimed_by"] = self.claimer
+            self._enqueue([entry])
         self._offload(self._flush_or_retry(now_us))
 
     def _flush_or_retry(self, now_us: int) -> Callable[[], None]:
@@ -465,11 +637,12 @@ class Agenda:
     # ------------------------------------------------------------------ privacy
 
     def export_user(self, user_id: str) -> dict[str, list[dict[str, Any]]]:
-        """The user's items and their delivery log, as stored (``dms users export``)."""
+        """The user's items, their delivery log and the robots' claims of their
+        occurrences, as stored (``dms users export``)."""
         self._flush()
         with self._sessions() as session:
             data = USER_DATA.export_user(session, user_id)
-        return data or {"items": [], "log": []}
+        return data or {"items": [], "log": [], "claims": []}
 
     def erase_user(self, user_id: str) -> None:
         """Delete the user's items and log, and forget their items here.
@@ -498,6 +671,17 @@ class Agenda:
             self._enqueue([_miss_entry(run) for run in runs])
             if self._flush_at_us is None:
                 self._flush_at_us = now_us + FLUSH_AFTER_S * US_PER_S
+            self._forget_claims()
+
+    def _forget_claims(self) -> None:
+        """``_lock`` held: drop what we know of claims of occurrences no longer open."""
+        entries = self._index.entries
+        for key in [
+            key
+            for key in self._claims
+            if (entry := entries.get(key[0])) is None or entry.cursor_us != key[1]
+        ]:
+            del self._claims[key]
 
     def _flush(self) -> None:
         """Write queued misses and deliveries, each with its item's new cursor.
@@ -540,8 +724,9 @@ class Agenda:
         with self._lock:
             self._apply_rows(rows, user_id)
 
-    def _apply_rows(self, rows: Sequence[ItemRow], user_id: str | None) -> None:
-        """The index after reading ``rows`` (``_lock`` held).
+    def _apply_rows(self, rows: Sequence[ItemRow], user_id: str | None, drop: bool = True) -> None:
+        """The index after reading ``rows`` (``_lock`` held); with ``drop``, the items
+        of ``user_id`` (everyone's for None) that are not in ``rows`` are forgotten.
 
         An item with a record still queued keeps its cursor here: the row is older.
         """
@@ -549,6 +734,7 @@ class Agenda:
         seen: set[int] = set()
         for row in rows:
             seen.add(row.id)
+            self._high_id = max(self._high_id, row.id)
             known = self._index.entries.get(row.id)
             if known is not None and row.id in queued:
                 continue
@@ -568,6 +754,9 @@ class Agenda:
                     log.warning("%s", problem)
                 continue
             self._index.put(self._entry(item, schedule))
+        self._forget_claims()
+        if not drop:
+            return
         stale = (
             self._index.user_items(user_id) if user_id is not None else list(self._index.entries)
         )
@@ -733,16 +922,21 @@ def _write(connection: Connection, entries: list[dict[str, Any]]) -> set[int]:
     """Log ``entries`` (deliveries and misses) and move their items' cursors, in bulk.
 
     An occurrence already logged (by another process, or before a crash: a journal
-    replayed again) is skipped: ``(item_id, fire_time)`` is unique; the cursors are set
-    in the entries' order, so a replay ends where the original writes did. So is one of
-    an item no longer stored (removed or erased by another process): an erased user's
-    log must not come back. Returns the ids of those items.
+    replayed again) is skipped: ``(item_id, fire_time)`` is unique; but a delivery
+    replaces a miss of the same occurrence (another robot of the fleet gave up on it
+    while this one delivered it). A cursor only moves forward (a robot late with its
+    writes does not move one back), so a replay ends where the original writes did.
+    An entry of an item no longer stored (removed or erased by another process) is
+    skipped: an erased user's log must not come back. Returns the ids of those items.
+    A delivery also claims its occurrence (it may have been delivered without a claim
+    while the database was away).
     """
     ids = {int(entry["item_id"]) for entry in entries}
     table = ItemRow.__table__
     stored = set(connection.scalars(select(table.c.id).where(table.c.id.in_(ids))))
     gone = ids - stored
     rows: list[dict[str, Any]] = []
+    claims: list[dict[str, Any]] = []
     cursors: dict[int, int | None] = {}
     for entry in entries:
         item_id = int(entry["item_id"])
@@ -762,39 +956,146 @@ def _write(connection: Connection, entries: list[dict[str, Any]]) -> set[int]:
                 "reason": entry["reason"],
             }
         )
+        if entry["outcome"] == str(Outcome.DELIVERED):
+            claims.append(
+                {
+                    "item_id": item_id,
+                    "fire_time": from_us(int(entry["first_us"])),
+                    "user_id": entry["user_id"],
+                    "claimed_by": str(entry.get("claimed_by", "unknown")),
+                    "claimed_at": from_us(int(entry["recorded_us"])),
+                }
+            )
         cursor = entry["cursor_us"]
+        if item_id in cursors and cursor is not None:
+            known = cursors[item_id]
+            cursor = None if known is None else max(known, int(cursor))
         cursors[item_id] = None if cursor is None else int(cursor)
     if not rows:
         return gone
     _insert_new(connection, rows)
-    connection.execute(
-        update(ItemRow.__table__)  # type: ignore[arg-type]
-        .where(ItemRow.__table__.c.id == bindparam("item"))
-        .values(next_fire=bindparam("cursor")),
-        [
-            {"item": item_id, "cursor": None if cursor is None else from_us(cursor)}
-            for item_id, cursor in cursors.items()
-        ],
-    )
+    if claims:
+        _insert_claims(connection, claims)
+    items: Any = ItemRow.__table__
+    ends = [{"item": item_id} for item_id, cursor in cursors.items() if cursor is None]
+    moves = [
+        {"item": item_id, "cursor": from_us(cursor)}
+        for item_id, cursor in cursors.items()
+        if cursor is not None
+    ]
+    live = items.c.next_fire.is_not(None)
+    if ends:
+        connection.execute(
+            update(items).where(items.c.id == bindparam("item"), live).values(next_fire=None),
+            ends,
+        )
+    if moves:
+        connection.execute(
+            update(items)
+            .where(
+                items.c.id == bindparam("item"),
+                live,
+                items.c.next_fire < bindparam("cursor", type_=UtcDateTime()),
+            )
+            .values(next_fire=bindparam("cursor", type_=UtcDateTime())),
+            moves,
+        )
     return gone
 
 
 def _insert_new(connection: Connection, rows: list[dict[str, Any]]) -> None:
-    table = OccurrenceRow.__table__
+    """Log the rows not logged yet; a delivery replaces a miss of the same occurrence."""
+    table: Any = OccurrenceRow.__table__
     dialect = connection.dialect.name
+    delivered = str(Outcome.DELIVERED)
     if dialect in ("sqlite", "postgresql"):
-        module = sqlite if dialect == "sqlite" else postgresql
-        statement = module.insert(table).on_conflict_do_nothing(
-            index_elements=["item_id", "fire_time"]
-        )
-        connection.execute(statement, rows)
+        module: Any = sqlite if dialect == "sqlite" else postgresql
+        misses = [row for row in rows if row["outcome"] != delivered]
+        deliveries = [row for row in rows if row["outcome"] == delivered]
+        if misses:
+            connection.execute(
+                module.insert(table).on_conflict_do_nothing(
+                    index_elements=["item_id", "fire_time"]
+                ),
+                misses,
+            )
+        if deliveries:
+            statement = module.insert(table)
+            replaced = ("outcome", "last_fire_time", "count", "recorded_at", "reason", "what")
+            connection.execute(
+                statement.on_conflict_do_update(
+                    index_elements=["item_id", "fire_time"],
+                    set_={name: statement.excluded[name] for name in replaced},
+                    where=table.c.outcome != delivered,
+                ),
+                deliveries,
+            )
         return
     for row in rows:
         try:
             with connection.begin_nested():
-                connection.execute(insert(table), row)  # type: ignore[arg-type]
+                connection.execute(insert(table), row)
         except IntegrityError:
             log.warning("agenda item %s at %s was already logged", row["item_id"], row["fire_time"])
+
+
+def _insert_claims(connection: Connection, rows: list[dict[str, Any]]) -> None:
+    table: Any = ClaimRow.__table__
+    dialect = connection.dialect.name
+    if dialect in ("sqlite", "postgresql"):
+        module: Any = sqlite if dialect == "sqlite" else postgresql
+        connection.execute(
+            module.insert(table).on_conflict_do_nothing(index_elements=["item_id", "fire_time"]),
+            rows,
+        )
+        return
+    for row in rows:
+        try:
+            with connection.begin_nested():
+                connection.execute(insert(table), row)
+        except IntegrityError:
+            pass
+
+
+def _claim(connection: Connection, item: DueItem, claimer: str, now_us: int) -> str | None:
+    """Claim one occurrence in the database: ``_MINE`` when this claimer has it (now or
+    from before), ``_THEIRS`` when another one does, None when the item is gone."""
+    items: Any = ItemRow.__table__
+    if connection.scalar(select(items.c.id).where(items.c.id == item.item_id)) is None:
+        return None
+    table: Any = ClaimRow.__table__
+    fire = item.fire_time
+    row = {
+        "item_id": item.item_id,
+        "fire_time": fire,
+        "user_id": item.user_id,
+        "claimed_by": claimer,
+        "claimed_at": from_us(now_us),
+    }
+    dialect = connection.dialect.name
+    if dialect in ("sqlite", "postgresql"):
+        module: Any = sqlite if dialect == "sqlite" else postgresql
+        inserted = connection.execute(
+            module.insert(table)
+            .values(row)
+            .on_conflict_do_nothing(index_elements=["item_id", "fire_time"])
+        ).rowcount
+    else:
+        try:
+            with connection.begin_nested():
+                inserted = connection.execute(insert(table).values(row)).rowcount
+        except IntegrityError:
+            inserted = 0
+    if inserted:
+        return _MINE
+    owner = connection.scalar(
+        select(table.c.claimed_by).where(table.c.item_id == item.item_id, table.c.fire_time == fire)
+    )
+    return _MINE if owner == claimer else _THEIRS
+
+
+def _key(item: DueItem) -> tuple[int, int]:
+    return (item.item_id, to_us(item.fire_time))
 
 
 def _what(item: AgendaItem) -> str:
@@ -857,18 +1158,27 @@ class _AgendaUserData:
         return {
             "items": [_stored(row) for row in session.scalars(_of(ItemRow, user_id))],
             "log": [_stored(row) for row in session.scalars(_of(OccurrenceRow, user_id))],
+            "claims": [
+                _stored(row)
+                for row in session.scalars(
+                    select(ClaimRow)
+                    .where(ClaimRow.user_id == user_id)
+                    .order_by(ClaimRow.fire_time, ClaimRow.item_id)
+                )
+            ],
         }
 
     def erase_user(self, session: Session, user_id: str) -> None:
         """Delete the user's log and items."""
         if not _has_tables(session):
             return
+        session.execute(delete(ClaimRow).where(ClaimRow.user_id == user_id))
         session.execute(delete(OccurrenceRow).where(OccurrenceRow.user_id == user_id))
         session.execute(delete(ItemRow).where(ItemRow.user_id == user_id))
 
 
 def _has_tables(session: Session) -> bool:
-    names = {ItemRow.__tablename__, OccurrenceRow.__tablename__}
+    names = {ItemRow.__tablename__, OccurrenceRow.__tablename__, ClaimRow.__tablename__}
     return names <= set(inspect(session.connection()).get_table_names())
 
 
@@ -876,7 +1186,7 @@ def _of(model: type[ItemRow] | type[OccurrenceRow], user_id: str) -> Any:
     return select(model).where(model.user_id == user_id).order_by(model.id)
 
 
-def _stored(row: ItemRow | OccurrenceRow) -> dict[str, Any]:
+def _stored(row: ItemRow | OccurrenceRow | ClaimRow) -> dict[str, Any]:
     """A row as stored, times in ISO 8601."""
     out: dict[str, Any] = {}
     for column in row.__table__.columns:

@@ -16,7 +16,9 @@ from memory.schema_history import SchemaHistory
 VERSION_TABLE = "alembic_version_agenda"
 HERE = Path(__file__).resolve().parent
 
-HISTORY = SchemaHistory(HERE, VERSION_TABLE, ("agenda_items", "agenda_occurrences"))
+HISTORY = SchemaHistory(
+    HERE, VERSION_TABLE, ("agenda_items", "agenda_occurrences", "agenda_claims")
+)
 head = HISTORY.head
 current = HISTORY.current
 installed = HISTORY.installed

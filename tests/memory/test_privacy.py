@@ -157,11 +157,12 @@ def test_the_agenda_exports_and_erases_one_user_itself(
     exported = agenda.export_user("ann")
     assert [i["kind"] for i in exported["items"]] == ["reminder", "event"]
     assert [o["outcome"] for o in exported["log"]] == ["delivered", "missed"]
+    assert [c["claimed_by"] for c in exported["claims"]] == [agenda.claimer]  # the delivery's
     agenda.erase_user("ann")
-    assert agenda.export_user("ann") == {"items": [], "log": []}
+    assert agenda.export_user("ann") == {"items": [], "log": [], "claims": []}
     assert agenda.due(NOW + 3 * HOUR, "ann") == []
     rows = _rows_of(db_path, "ann")
-    assert rows["agenda_items"] == rows["agenda_occurrences"] == 0
+    assert rows["agenda_items"] == rows["agenda_occurrences"] == rows["agenda_claims"] == 0
     assert rows["users"] == 1  # the profile is the store's to erase
     assert len(agenda.export_user("bob")["items"]) == 2
 
