@@ -186,9 +186,28 @@ def environment() -> dict[str, Any]:
     try:
         found = EnvSettingsSource(_Environment)()
     except Exception as error:  # pydantic-settings' SettingsError: a JSON value is not JSON
-        raise ConfigError(f"environment: {error}") from None
+        raise ConfigError(_not_json(error)) from None
     found.pop("source", None)
     return found
+
+
+def _not_json(error: Exception) -> str:
+    """One line naming the variable whose list or table is not JSON."""
+    import json
+    import os
+    import re
+
+    field = re.search(r'field "(\w+)"', str(error))
+    prefix = env_name([field.group(1)]) if field else ENV_PREFIX
+    mine = [(name, value) for name, value in os.environ.items() if name.upper().startswith(prefix)]
+    # A value that looks like JSON and is not first, then any value that is not JSON.
+    mine.sort(key=lambda item: (item[1].strip()[:1] not in ("[", "{"), item[0]))
+    for name, value in mine:
+        try:
+            json.loads(value)
+        except ValueError as bad:
+            return f'{name} (environment): not JSON ({bad}); write lists as ["a", "b"]'
+    return f"environment: {str(error).splitlines()[0]}"
 
 
 def env_name(loc: Sequence[int | str]) -> str:
