@@ -1,0 +1,85 @@
+"""Benchmark: frames and gaze (issue 16's figures).
+
+- ``lookup_us``: ``FrameStore.lookup`` of a face in a store of 51 frames (the base, the
+  body's five, 44 objects half of them two levels deep, the face), relative to the
+  head: p50 and p99 over 20,000 lookups (target <= 10 µs with 50 frames);
+- ``gaze_update_us``: one ``Attention.update`` per tick while the face moves a little
+  each tick (lookup, aim, dead band, rate limit), p50 and p99 over 20,000 ticks
+  (target <= 50 µs).
+
+Prints one JSON object.
+
+    .venv/bin/python bench/bench_frames.py
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import statistics
+import time
+from datetime import UTC, datetime, timedelta
+
+from dms.kernel.body import HEAD, body_frames
+from dms.kernel.frames import FrameStore, pose
+from dms.kernel.gaze import EYE_HEIGHT_M, Attention
+
+T0 = datetime(2026, 11, 24, 10, 0, tzinfo=UTC)
+N = 20_000
+
+
+def _store() -> FrameStore:
+    frames = FrameStore(body_frames({"neck": 0.3, "head": 0.1}))
+    for index in range(22):
+        frames.set(f"object:tray{index}", pose((0.5, 0.1 * index, 0.0)), stamp=T0)
+        frames.set(f"object:cup{index}", pose((0.05, 0.0, 0.02)), parent=f"object:tray{index}")
+    frames.set("face:ann", pose((0.9, 0.3, EYE_HEIGHT_M)), stamp=T0, stale_after_s=1.0)
+    assert len(frames.names) == 51, len(frames.names)
+    return frames
+
+
+def _percentiles(samples: list[float]) -> dict[str, float]:
+    cuts = statistics.quantiles(samples, n=100)
+    return {"p50": round(cuts[49], 2), "p99": round(cuts[98], 2)}
+
+
+def bench_lookup() -> dict[str, float]:
+    frames = _store()
+    now = T0 + timedelta(seconds=0.2)
+    samples = []
+    for _ in range(N):
+        start = time.perf_counter_ns()
+        frames.lookup("face:ann", now, reference=HEAD)
+        samples.append((time.perf_counter_ns() - start) / 1000)
+    return _percentiles(samples)
+
+
+def bench_gaze() -> dict[str, float]:
+    frames = _store()
+    attention = Attention("face:ann")
+    samples = []
+    for tick in range(N):
+        now = T0 + timedelta(seconds=tick * 0.5)
+        sway = 0.3 + 0.2 * math.sin(tick / 10)
+        frames.set("face:ann", pose((0.9, sway, EYE_HEIGHT_M)), stamp=now, stale_after_s=1.0)
+        start = time.perf_counter_ns()
+        attention.update(frames, now)
+        samples.append((time.perf_counter_ns() - start) / 1000)
+    return {**_percentiles(samples), "shifts": attention.shifts}
+
+
+def main() -> None:
+    print(
+        json.dumps(
+            {
+                "frames": 51,
+                "lookup_us": bench_lookup(),
+                "gaze_update_us": bench_gaze(),
+                "targets_us": {"lookup": 10, "gaze_update": 50},
+            }
+        )
+    )
+
+
+if __name__ == "__main__":
+    main()
