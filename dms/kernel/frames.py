@@ -10,7 +10,8 @@ a lookup says whether the answer is live or last-known, and its age.
 
 Poses are 4x4 homogeneous matrices (numpy): composing and inverting them is a few
 microseconds, which keeps a lookup in a 50-frame tree under 10 µs. Rotations are made
-by ``scipy.spatial.transform.Rotation`` (quaternions, Euler angles), never by hand.
+by ``scipy.spatial.transform.Rotation`` (quaternions, Euler angles), never by hand,
+imported when the first one is made.
 Everything is pure and takes ``now``, like the motivation model.
 """
 
@@ -23,7 +24,6 @@ from datetime import datetime
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 Matrix = NDArray[np.float64]
 """A 4x4 homogeneous transform: parent <- child (a point in child -> in parent)."""
@@ -43,10 +43,15 @@ def pose(
     """A transform from a translation and a rotation (quaternion x, y, z, w, or roll,
     pitch, yaw in radians); none given: no rotation."""
     matrix = np.eye(4)
-    if quaternion is not None:
-        matrix[:3, :3] = Rotation.from_quat(list(quaternion)).as_matrix()
-    elif rpy is not None:
-        matrix[:3, :3] = Rotation.from_euler("xyz", list(rpy)).as_matrix()
+    if quaternion is not None or rpy is not None:
+        # scipy's import takes a quarter of a second: paid on the first rotation made
+        # (the first face seen), not on the daemon's start path (issue 14).
+        from scipy.spatial.transform import Rotation
+
+        if quaternion is not None:
+            matrix[:3, :3] = Rotation.from_quat(list(quaternion)).as_matrix()
+        else:
+            matrix[:3, :3] = Rotation.from_euler("xyz", list(rpy)).as_matrix()
     matrix[:3, 3] = xyz
     return matrix
 
