@@ -49,9 +49,10 @@ def pose(
         from scipy.spatial.transform import Rotation
 
         if quaternion is not None:
-            matrix[:3, :3] = Rotation.from_quat(list(quaternion)).as_matrix()
+            rotation = Rotation.from_quat(list(quaternion))
         else:
-            matrix[:3, :3] = Rotation.from_euler("xyz", list(rpy)).as_matrix()
+            rotation = Rotation.from_euler("xyz", list(rpy or (0.0, 0.0, 0.0)))
+        matrix[:3, :3] = rotation.as_matrix()
     matrix[:3, 3] = xyz
     return matrix
 
