@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import heapq
 import itertools
+import math
 import random
 import tempfile
 from collections.abc import Callable
@@ -121,6 +122,8 @@ class Simulation:
         self._queue: list[_Scheduled] = []
         self._order = itertools.count()
         self._next_tick = 0.0
+        self._due_seen: datetime | None = None
+        self._due_seen_t = 0.0
         try:
             self.stack: Stack = build_stack(
                 self.settings,
@@ -252,8 +255,12 @@ class Simulation:
         user = self.user
         if user is None:
             return False
+        now = self.clock.now()
+        due = user.next_due()
+        if due is None or due > now:  # what ``due`` would find: nothing, without a list
+            return False
         urgent = False
-        for key, message in user.due(self.clock.now()):
+        for key, message in user.due(now):
             self.feed(key, message)
             urgent = urgent or key in keys.URGENT_INPUTS
         return urgent
@@ -264,7 +271,10 @@ class Simulation:
         due = self.user.next_due()
         if due is None:
             return None
-        return (due - self.start).total_seconds()
+        if due != self._due_seen:  # the same next action is asked for at every tick
+            self._due_seen = due
+            self._due_seen_t = (due - self.start).total_seconds()
+        return self._due_seen_t
 
     def _step(self) -> float:
         """The period to the next periodic tick: larger while idle, if allowed."""
@@ -281,18 +291,19 @@ class Simulation:
 
     def run_until(self, t_end: float) -> None:
         """Tick (periodically and on urgent inputs) until virtual second ``t_end``."""
+        queue, clock = self._queue, self.clock
         while True:
-            candidates = [self._next_tick if self.periodic else float("inf")]
-            if self._queue:
-                candidates.append(self._queue[0].t)
+            upcoming = self._next_tick if self.periodic else math.inf
+            if queue and queue[0].t < upcoming:
+                upcoming = queue[0].t
             user_t = self._user_due_t()
-            if user_t is not None:
-                candidates.append(user_t)
-            upcoming = min(candidates)
+            if user_t is not None and user_t < upcoming:
+                upcoming = user_t
             if upcoming > t_end:
                 break
-            if upcoming > self.t:
-                self.clock.advance(upcoming - self.t)
+            t = clock.monotonic()
+            if upcoming > t:
+                clock.advance(upcoming - t)
             urgent = False
             while self._queue and self._queue[0].t <= self.t:
                 scheduled = heapq.heappop(self._queue)

@@ -18,6 +18,7 @@ activity is seen less often. ``ticks`` in the JSON counts the controller ticks r
 
 from __future__ import annotations
 
+import math
 import random
 import resource
 import sys
@@ -136,6 +137,9 @@ class _Tracker:
         self.next_sample = 0.0
         self.spans: list[tuple[str, float, float]] = []
         self._span_start = 0.0
+        self._base = start.hour * 3600 + start.minute * 60 + start.second
+        self._hour: tuple[float, float, dict[str, float]] = (math.nan, 0.0, {})
+        """The hour of the last interval accounted: (its index, its end, its seconds)."""
 
     def on_tick(self, t: float, record: TickRecord) -> None:
         # The motivation part and the activity's name only: the whole DmsState is not
@@ -147,9 +151,10 @@ class _Tracker:
             if self.last_wellbeing is not None:
                 self.wellbeing_area += self.last_wellbeing * dt
         motivation = record.motivation
+        drives_max = self.drives_max
         for name, value in motivation.drives.items():
-            if value > self.drives_max.get(name, float("-inf")):
-                self.drives_max[name] = value
+            if value > drives_max.get(name, -math.inf):
+                drives_max[name] = value
         self.last_wellbeing = motivation.wellbeing
         activity = record.activity
         if activity != self.last_activity:
@@ -165,14 +170,20 @@ class _Tracker:
     def _account(self, name: str, t0: float, t1: float) -> None:
         self.activity_seconds[name] += t1 - t0
         # Split the interval at hour boundaries so that "by hour" is exact.
-        base = self.start.hour * 3600 + self.start.minute * 60 + self.start.second
+        base = self._base
+        index, boundary, seconds = self._hour
+        if (base + t0) // 3600 == index and t1 <= boundary:
+            seconds[name] += t1 - t0  # a tick inside the hour of the last one: no split
+            return
         t = t0
         while t < t1:
             clock = base + t
-            hour = int(clock // 3600) % 24
-            boundary = (clock // 3600 + 1) * 3600 - base
+            index = clock // 3600
+            boundary = (index + 1) * 3600 - base
+            seconds = self.by_hour[int(index) % 24]
             end = min(t1, boundary)
-            self.by_hour[hour][name] += end - t
+            seconds[name] += end - t
+            self._hour = (index, boundary, seconds)
             t = end
 
     def finish(self, t: float) -> None:

@@ -171,10 +171,12 @@ class SimRobot:
             self._emit(now, command_id, "interrupted")
 
     def poll(self, now: datetime) -> list[RobotFeedback]:
-        for command_id, running in list(self._running.items()):
-            if running.ends <= now:
-                del self._running[command_id]
-                self._emit(running.ends, command_id, "done")
+        ended = [key for key, running in self._running.items() if running.ends <= now]
+        for command_id in ended:
+            running = self._running.pop(command_id)
+            self._emit(running.ends, command_id, "done")
+        if not self._out:
+            return []  # most ticks: nothing to say (no sorting, no new lists)
         due = sorted(item for item in self._out if item[0] <= now)
         self._out = [item for item in self._out if item[0] > now]
         return [feedback for _, _, feedback in due]

@@ -50,9 +50,15 @@ class VirtualClock:
             raise ValueError("VirtualClock needs a timezone-aware start time")
         self._start = start.astimezone(UTC)
         self._elapsed = 0.0
+        self._now = self._start
+        self._now_at = 0.0
 
     def now(self) -> datetime:
-        return self._start + timedelta(seconds=self._elapsed)
+        # Read a few times a tick by the simulation: made once per clock position.
+        if self._now_at != self._elapsed:
+            self._now = self._start + timedelta(seconds=self._elapsed)
+            self._now_at = self._elapsed
+        return self._now
 
     def monotonic(self) -> float:
         return self._elapsed

@@ -240,7 +240,8 @@ class ExpressionArbiter:
                     self.robot.interrupt(active.command_id, now)
                 lane.active = None
         for lane in self._channels.values():
-            self._dispatch(lane, now)
+            if lane.active is None and lane.queue:
+                self._dispatch(lane, now)
 
     def _overdue(self, active: CommandHandle, now: datetime) -> str | None:
         """Why ``active`` has waited too long for the robot, or None."""
@@ -248,6 +249,8 @@ class ExpressionArbiter:
             if now - active.sent_at >= self.ack_timeout:
                 return f"not acknowledged within {self.ack_timeout.total_seconds():g} s"
         elif active.status is CommandStatus.STARTED and active.started_at is not None:
+            if now - active.started_at < self.done_timeout:
+                return None  # within the shortest limit: no need to work out this one's
             length = active.args.get("duration_s")
             extra = float(length) if isinstance(length, int | float) and length > 0 else 0.0
             limit = self.done_timeout + timedelta(seconds=extra)

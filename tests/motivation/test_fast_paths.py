@@ -1,0 +1,84 @@
+"""The tick's shortcuts give the numbers of the plain code, bit for bit (issue 14).
+
+``step`` works out each drive's rate once per inputs (a memo) and skips ``evolve``'s
+calls when the rate cannot turn; ``snapshot`` rounds with ``round3``. Same seeds must
+give the same decisions, so these are compared with ``==``, not within a tolerance.
+"""
+
+from __future__ import annotations
+
+import math
+from datetime import datetime, timedelta
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from motivation import MotivationModel, MotivationState, Stimuli
+from motivation.dynamics import evolve
+from motivation.model import day_seconds, round3
+from tests.motivation.strategies import instants, models, runnings, states, stimuli
+
+
+def plain_step(
+    model: MotivationModel,
+    state: MotivationState,
+    dt: float,
+    inputs: Stimuli,
+    running: str | None,
+    now: datetime,
+) -> MotivationState:
+    """``step`` as it was written before the shortcuts: ``evolve`` for every drive."""
+    end = day_seconds(now, model.zone)
+    start = end - dt
+    growth = model.net_growth(inputs, running).tolist()
+    swing = model.swing(running).tolist()
+    evolved = []
+    for i, drive in enumerate(state.drives.tolist()):
+        drive = max(0.0, drive - float(inputs.instant[i]))
+        peak = float(model.table.peak_s[i])
+        evolved.append(evolve(drive, growth[i], swing[i], peak, start, end))
+    drives = np.array(evolved)
+    dominant = model.next_dominant(state.dominant, drives, inputs.levels)
+    return MotivationState(drives, inputs.levels, dominant)
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.data())
+def test_step_is_the_plain_step_bit_for_bit(data: st.DataObject) -> None:
+    model = data.draw(models())
+    state = data.draw(states(model))
+    now = data.draw(instants())
+    # two inputs taken in turn, and a running behavior that changes: the memo must follow
+    inputs = [data.draw(stimuli(model)), data.draw(stimuli(model))]
+    plain = state
+    for k in range(6):
+        dt = data.draw(st.sampled_from([0.5, 0.5, 3.0, 300.0, 7200.0]))
+        running = data.draw(runnings(model))
+        now += timedelta(seconds=dt)
+        given_inputs = inputs[k % 2]
+        state = model.step(state, dt, given_inputs, running, now)
+        plain = plain_step(model, plain, dt, given_inputs, running, now)
+        assert state.drives.tolist() == plain.drives.tolist()
+        assert state.dominant == plain.dominant
+
+
+@given(st.floats(allow_nan=True, allow_infinity=True))
+def test_round3_is_round(value: float) -> None:
+    ours, theirs = round3(value), round(value, 3)
+    if math.isnan(theirs):
+        assert math.isnan(ours)
+    else:
+        assert ours == theirs and math.copysign(1.0, ours) == math.copysign(1.0, theirs)
+
+
+def test_round3_near_halves_and_zeros() -> None:
+    """Ties and their neighbours, where the product in floats could mislead."""
+    values = [0.0, -0.0, 2.675, 1.0005, 99.9995, 0.0005, 5e-324, 1e15, 1e300]
+    for k in range(0, 200_001, 7):
+        tie = k / 2000
+        values += [tie, math.nextafter(tie, 0.0), math.nextafter(tie, 1e9)]
+    for value in values:
+        ours = round3(value)
+        assert ours == round(value, 3)
+        assert math.copysign(1.0, ours) == math.copysign(1.0, round(value, 3))
