@@ -506,6 +506,17 @@ class Agenda:
                 if self._claims.get(_key(item), ("", 0))[0] == _MINE
             ]
 
+    def wait_idle(self, timeout: float) -> bool:
+        """Wait until the background work queued so far is done (tests, benchmarks)."""
+        if self._jobs is None:
+            return True
+        try:
+            future = self._jobs.submit(lambda: None)
+        except RuntimeError:
+            return True
+        done, _ = wait_for([future], timeout=timeout)
+        return bool(done)
+
     def claim(self, item: DueItem, now: datetime) -> bool:
         """Claim one occurrence for this robot now, in the database; whether it is ours.
 
@@ -1075,17 +1086,22 @@ def _claim(connection: Connection, item: DueItem, claimer: str, now_us: int) -> 
     dialect = connection.dialect.name
     if dialect in ("sqlite", "postgresql"):
         module: Any = sqlite if dialect == "sqlite" else postgresql
-        inserted = connection.execute(
-            module.insert(table)
-            .values(row)
-            .on_conflict_do_nothing(index_elements=["item_id", "fire_time"])
-        ).rowcount
+        inserted = (
+            connection.execute(
+                module.insert(table)
+                .values(row)
+                .on_conflict_do_nothing(index_elements=["item_id", "fire_time"])
+                .returning(table.c.item_id)
+            ).first()
+            is not None
+        )
     else:
         try:
             with connection.begin_nested():
-                inserted = connection.execute(insert(table).values(row)).rowcount
+                connection.execute(insert(table).values(row))
+            inserted = True
         except IntegrityError:
-            inserted = 0
+            inserted = False
     if inserted:
         return _MINE
     owner = connection.scalar(

@@ -21,7 +21,9 @@ transaction and is skipped when it comes again (a spool replayed after a crash).
 from __future__ import annotations
 
 import math
+import random
 import threading
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager, suppress
 from datetime import UTC, datetime, timedelta
@@ -326,6 +328,20 @@ class ProfileStore:
             raise ProfileNotFound(f"no profile for user {user_id!r}")
         return row
 
+    def _user_to_write(self, session: Session, user_id: str) -> UserRow:
+        """The user's row, read to be written: on PostgreSQL locked (``SELECT ... FOR
+        UPDATE``) until the transaction ends, so the other robots' writes of this user
+        wait instead of failing their version check; elsewhere read plainly (the version
+        check then catches a concurrent write and the write is retried)."""
+        if self._dialect != "postgresql":
+            return self._user(session, user_id)
+        row = session.get(
+            UserRow, user_id, with_for_update={"of": UserRow.__table__}, populate_existing=True
+        )
+        if row is None:
+            raise ProfileNotFound(f"no profile for user {user_id!r}")
+        return row
+
     def _bump_score(self, session: Session, user_id: str, activity: str, **deltas: Any) -> None:
         """Add ``deltas`` to the user's score of ``activity`` in the database, creating the
         row if needed: one statement, so concurrent writers neither collide nor lose one."""
@@ -403,7 +419,7 @@ class ProfileStore:
             raise ProfileError(
                 f"write_id: must be a string of 1 to 64 characters (got {write_id!r:.60})"
             )
-        for _ in range(MAX_ATTEMPTS):
+        for attempt in range(MAX_ATTEMPTS):
             try:
                 with self._session() as session:
                     if write_id is not None:
@@ -425,6 +441,9 @@ class ProfileStore:
             except _Stale:
                 with self._count_lock:
                     self.retries += 1
+                # Out of step with the other writer before the next try: a jittered,
+                # growing pause (at most 50 ms), so that two robots do not collide again.
+                time.sleep(random.uniform(0, min(0.05, 0.001 * 2 ** min(attempt, 6))))
                 continue
             except _AlreadyApplied as applied:
                 return again(applied.result)
@@ -474,7 +493,7 @@ class ProfileStore:
         on the fresh row."""
 
         def run(session: Session) -> Profile:
-            row = self._user(session, user_id)
+            row = self._user_to_write(session, user_id)
             change(row)
             session.flush()
             return snapshot(row)
@@ -810,7 +829,7 @@ class ProfileStore:
         columns, attributes = validate_fields(applied or {})
 
         def change(session: Session) -> Profile:
-            row = self._user(session, user_id)
+            row = self._user_to_write(session, user_id)
             session.add(
                 AnswerRow(
                     user_id=user_id, question_id=question_id, answer=answer, applied=applied, at=now
