@@ -38,6 +38,10 @@ class Param:
     nullable: bool = False
 
 
+_BROKEN = frozenset({CommandStatus.FAILED, CommandStatus.TIMED_OUT})
+"""What a command ends with when the robot could not do it: the block fails."""
+
+
 class Block(Node):
     """A leaf state: binds its parameters on entry, sends robot commands, waits on them."""
 
@@ -99,7 +103,7 @@ class Block(Node):
 
     def command_error(self) -> str | None:
         for handle in self.handles:
-            if handle.status in (CommandStatus.FAILED, CommandStatus.TIMED_OUT):
+            if handle.status in _BROKEN:
                 reason = handle.detail or handle.status.value
                 return f"{handle.channel} {handle.action} {handle.status.value}: {reason}"
         return None

@@ -66,6 +66,9 @@ class Status(Enum):
     """Could not go on (a robot command failed or timed out): ``Node.error`` says why."""
 
 
+_INVALID, _RUNNING, _DONE, _FAILED = Status.INVALID, Status.RUNNING, Status.DONE, Status.FAILED
+
+
 class Runtime:
     """What the states of one running activity share: context, arguments, content."""
 
@@ -81,6 +84,9 @@ class Runtime:
         self.redirect: str | None = None
         self.on_enter: Callable[[Node], None] | None = None
         """Called when a state is entered (the stepper and tests listen)."""
+        self.epoch = 0
+        """Counts the changes of any state's status or of a machine's current state:
+        the active path is worked out again only when it moved (issue 14)."""
 
     def content(self, name: str) -> Any:
         return _load_content(self.content_dirs, name)
@@ -198,13 +204,25 @@ class Node:
         self.outcomes = tuple(outcomes)
         self.rt = rt
         self.io = io or Io()
-        self.status = Status.INVALID
+        self._status = _INVALID
         self.outcome: str | None = None
         self.error: str | None = None
         self.paused = False
         self.ud: MutableMapping[str, Any] = {}
         self._preempt_requested = False
         self.entered = 0
+        self._path = ""
+        self._path_epoch = -1
+
+    @property
+    def status(self) -> Status:
+        """Where the state is in its run; every change is counted in ``rt.epoch``."""
+        return self._status
+
+    @status.setter
+    def status(self, value: Status) -> None:
+        self._status = value
+        self.rt.epoch += 1
 
     # ------------------------------------------------------------ hooks
 
@@ -250,15 +268,18 @@ class Node:
         without running; a container is entered and passes the request on, so that
         a cleanup transition of its first state still runs.
         """
-        if self.status is Status.DONE or self.status is Status.FAILED:
-            return self.status
+        # Module constants, not ``Status.X``: an enum member lookup costs more than the
+        # test, and this runs for every active state every tick.
+        status = self._status
+        if status is _DONE or status is _FAILED:
+            return status
         if self.paused:
-            return Status.RUNNING
-        if self.status is Status.INVALID:
+            return _RUNNING
+        if status is _INVALID:
             if self._preempt_requested and not self.is_container:
                 self._preempt_requested = False
-                return self._end(now, Status.DONE, PREEMPTED, enter_terminate=False)
-            self.status = Status.RUNNING
+                return self._end(now, _DONE, PREEMPTED, enter_terminate=False)
+            self.status = _RUNNING
             self.outcome = None
             self.error = None
             self.paused = False
@@ -272,15 +293,17 @@ class Node:
                 self.forward_preempt()
             else:
                 self.stop(now)
-                return self._end(now, Status.DONE, PREEMPTED, enter_terminate=False)
+                return self._end(now, _DONE, PREEMPTED, enter_terminate=False)
         status = self.update(now)
-        if status is Status.DONE:
+        if status is _RUNNING:
+            return _RUNNING
+        if status is _DONE:
             if self.outcome is None:
                 self.outcome = self.outcomes[0] if self.outcomes else "done"
-            return self._end(now, Status.DONE, self.outcome)
-        if status is Status.FAILED:
-            return self._end(now, Status.FAILED, None)
-        return Status.RUNNING
+            return self._end(now, _DONE, self.outcome)
+        if status is _FAILED:
+            return self._end(now, _FAILED, None)
+        return _RUNNING
 
     def _end(
         self, now: datetime, status: Status, outcome: str | None, enter_terminate: bool = True
@@ -295,12 +318,12 @@ class Node:
     def fail(self, error: str) -> Status:
         """For ``update``: end FAILED with ``error``."""
         self.error = error
-        return Status.FAILED
+        return _FAILED
 
     def finish(self, outcome: str) -> Status:
         """For ``update``: end DONE with ``outcome``."""
         self.outcome = outcome
-        return Status.DONE
+        return _DONE
 
     def stop(self, now: datetime) -> None:
         """Stop from outside, at every depth below: terminate(INVALID).
@@ -308,11 +331,11 @@ class Node:
         A preemption request not serviced yet is dropped with the run it was meant
         for (SMACH and YASMIN clear it too): the next entry starts afresh.
         """
-        if self.status is Status.RUNNING:
+        if self._status is _RUNNING:
             for child in self.active_children():
                 child.stop(now)
-            self.terminate(now, Status.INVALID)
-        self.status = Status.INVALID
+            self.terminate(now, _INVALID)
+        self.status = _INVALID
         self.paused = False
         self._preempt_requested = False
 
@@ -321,7 +344,7 @@ class Node:
 
     def reset(self) -> None:
         """Forget a finished run so the state can be entered again."""
-        self.status = Status.INVALID
+        self.status = _INVALID
         self.outcome = None
         self.error = None
 
@@ -331,7 +354,7 @@ class Node:
         Asking again before that tick is the same request; asking a finished state
         does nothing.
         """
-        if self.status is not Status.DONE and self.status is not Status.FAILED:
+        if self._status is not _DONE and self._status is not _FAILED:
             self._preempt_requested = True
 
     @property
@@ -339,7 +362,7 @@ class Node:
         return self._preempt_requested
 
     def pause(self, now: datetime) -> None:
-        if self.status is Status.RUNNING and not self.paused:
+        if self._status is _RUNNING and not self.paused:
             for child in self.active_children():
                 child.pause(now)
             self.paused = True
@@ -348,7 +371,7 @@ class Node:
     def resume(self, now: datetime) -> None:
         """Thaw this state and those below; a leaf with a preemption request waiting
         does not restart its commands (its next tick ends it ``preempted``)."""
-        if self.status is Status.RUNNING and self.paused:
+        if self._status is _RUNNING and self.paused:
             self.paused = False
             if self.is_container or not self._preempt_requested:
                 self.on_resume(now)
@@ -364,19 +387,26 @@ class Node:
 
     def deliver(self, event: Event) -> bool:
         """Offer ``event`` to this state and the states active below it."""
-        if self.status is not Status.RUNNING or self.paused:
+        if self._status is not _RUNNING or self.paused:
             return False
         if self.on_event(event):
             return True
         return any(child.deliver(event) for child in self.active_children())
 
     def active_path(self) -> str:
+        """The running states below this one (``A/B,C``); kept until a status changes,
+        since the managers and the controller ask for it several times a tick."""
+        epoch = self.rt.epoch
+        if self._path_epoch == epoch:
+            return self._path
         parts = []
         for child in self.active_children():
-            if child.status is Status.RUNNING:
+            if child._status is _RUNNING:
                 below = child.active_path()
                 parts.append(f"{child.name}/{below}" if below else child.name)
-        return ",".join(parts)
+        path = ",".join(parts)
+        self._path, self._path_epoch = path, epoch
+        return path
 
     def describe(self) -> dict[str, Any]:
         """This state's part of ``Activity.structure()``."""
@@ -385,7 +415,7 @@ class Node:
             "kind": self.kind,
             "outcomes": list(self.outcomes),
             "status": self.status.value,
-            "active": self.status is Status.RUNNING,
+            "active": self._status is _RUNNING,
         }
         if self.paused:
             out["paused"] = True
@@ -435,7 +465,7 @@ class Container(Node):
         """Bind and reset the states to run first."""
 
     def terminate(self, now: datetime, new_status: Status) -> None:
-        if new_status is Status.DONE and not self.shares_userdata:
+        if new_status is _DONE and not self.shares_userdata:
             for key in self.io.output_keys:
                 if key in self.data:
                     self.ud[key] = self.data[key]
@@ -485,39 +515,44 @@ class StateMachine(Container):
         state.reset()
         state.bind(self.data)
         self.current = state
+        self.rt.epoch += 1
 
     def forward_preempt(self) -> None:
         if self.current is not None:
             self.current.preempt()
 
     def update(self, now: datetime) -> Status:
-        for _ in range(MAX_STEPS_PER_TICK):
+        steps = MAX_STEPS_PER_TICK
+        while steps:  # (not a ``range``: most ticks end at the first state, still running)
+            steps -= 1
             state = self.current
             if state is None:
                 return self.fail("no active state")
             status = state.tick(now)
-            if status is Status.RUNNING:
-                return Status.RUNNING
-            if status is Status.FAILED:
+            if status is _RUNNING:
+                return _RUNNING
+            if status is _FAILED:
                 return self.fail(f"{state.name}: {state.error}")
             outcome = state.outcome or ""
             target = self.transitions.get(state.name, {}).get(outcome)
             if target is None:
                 target = outcome  # an outcome of the container passes through
                 if outcome == PREEMPTED:
-                    state.status = Status.INVALID  # not serviced here: it climbs
+                    state.status = _INVALID  # not serviced here: it climbs
             self.transitions_taken += 1
             if target in self.states:
                 self._enter(self.states[target])
                 continue
             self.current = None
+            self.rt.epoch += 1
             return self.finish(target)
-        return Status.RUNNING
+        return _RUNNING
 
     def terminate(self, now: datetime, new_status: Status) -> None:
         super().terminate(now, new_status)
-        if new_status is not Status.INVALID:
+        if new_status is not _INVALID:
             self.current = None
+            self.rt.epoch += 1
 
     def describe(self) -> dict[str, Any]:
         out = super().describe()
@@ -574,7 +609,7 @@ class Concurrence(Container):
         return list(self.states.values())
 
     def active_children(self) -> Sequence[Node]:
-        return [s for s in self.states.values() if s.status is Status.RUNNING]
+        return [s for s in self.states.values() if s._status is _RUNNING]
 
     def enter_children(self, now: datetime) -> None:
         self._winding_down = False
@@ -590,20 +625,20 @@ class Concurrence(Container):
     def _wind_down(self) -> None:
         self._winding_down = True
         for state in self.states.values():
-            if state.status is Status.INVALID or state.status is Status.RUNNING:
+            if state._status is _INVALID or state._status is _RUNNING:
                 state.preempt()
 
     def _tick_all(self, now: datetime) -> Node | None:
         for state in self.states.values():
-            live = state.status is Status.INVALID or state.status is Status.RUNNING
-            if live and state.tick(now) is Status.FAILED:
+            live = state._status is _INVALID or state._status is _RUNNING
+            if live and state.tick(now) is _FAILED:
                 return state
         return None
 
     def _match(self) -> str | None:
         for outcome, wanted in self.outcome_map.items():
             if all(
-                self.states[child].status is Status.DONE and self.states[child].outcome == out
+                self.states[child]._status is _DONE and self.states[child].outcome == out
                 for child, out in wanted.items()
             ):
                 return outcome
@@ -614,7 +649,7 @@ class Concurrence(Container):
         cleanup runs), and once all have ended read the outcome map in order."""
         failed = self._tick_all(now)
         if failed is None and not self._winding_down:
-            done = [s for s in self.states.values() if s.status is Status.DONE]
+            done = [s for s in self.states.values() if s._status is _DONE]
             climbed = any(s.outcome == PREEMPTED and s.name not in self._services for s in done)
             if climbed:
                 self._preempted = True
@@ -628,20 +663,20 @@ class Concurrence(Container):
         if failed is not None:
             self._stop_all(now)
             return self.fail(f"{failed.name}: {failed.error}")
-        if any(state.status is not Status.DONE for state in self.states.values()):
-            return Status.RUNNING
+        if any(state._status is not _DONE for state in self.states.values()):
+            return _RUNNING
         outcome = self._match()
         if outcome is not None:
             return self.finish(outcome)
         if self._preempted:
             for state in self.states.values():
-                state.status = Status.INVALID  # not serviced here: it climbs
+                state.status = _INVALID  # not serviced here: it climbs
             return self.finish(PREEMPTED)
         return self.finish(self.default_outcome)
 
     def _stop_all(self, now: datetime) -> None:
         for state in self.states.values():
-            if state.status is Status.RUNNING:
+            if state._status is _RUNNING:
                 state.stop(now)
 
     def describe(self) -> dict[str, Any]:
@@ -687,7 +722,7 @@ class Iterator(Container):
         return [self.state]
 
     def active_children(self) -> Sequence[Node]:
-        return [self.state] if self.state.status is Status.RUNNING else []
+        return [self.state] if self.state._status is _RUNNING else []
 
     def forward_preempt(self) -> None:
         if self.index < len(self.items):
@@ -714,20 +749,20 @@ class Iterator(Container):
             if self.index >= len(self.items):
                 return self.finish(self.exhausted)
             status = self.state.tick(now)
-            if status is Status.RUNNING:
-                return Status.RUNNING
-            if status is Status.FAILED:
+            if status is _RUNNING:
+                return _RUNNING
+            if status is _FAILED:
                 return self.fail(f"{self.state.name}: {self.state.error}")
             outcome = self.state.outcome or ""
             if outcome in self.break_on:
                 return self.finish(self.break_on[outcome])
             if outcome not in self.continue_on:
                 if outcome == PREEMPTED:
-                    self.state.status = Status.INVALID  # not serviced here: it climbs
+                    self.state.status = _INVALID  # not serviced here: it climbs
                 return self.finish(outcome)
             self.index += 1
             self._next()
-        return Status.RUNNING
+        return _RUNNING
 
     def active_path(self) -> str:
         below = super().active_path()
@@ -790,7 +825,7 @@ class Guard(Container):
         return [self.state]
 
     def active_children(self) -> Sequence[Node]:
-        return [self.state] if self.state.status is Status.RUNNING else []
+        return [self.state] if self.state._status is _RUNNING else []
 
     def forward_preempt(self) -> None:
         self.state.preempt()
@@ -815,13 +850,13 @@ class Guard(Container):
             self.state.stop(now)
             return self.finish(self.trigger_outcome)
         status = self.state.tick(now)
-        if status is Status.FAILED:
+        if status is _FAILED:
             return self.fail(f"{self.state.name}: {self.state.error}")
-        if status is Status.DONE:
+        if status is _DONE:
             if self.state.outcome == PREEMPTED:
-                self.state.status = Status.INVALID  # a guard never services it: it climbs
+                self.state.status = _INVALID  # a guard never services it: it climbs
             return self.finish(self.state.outcome or "")
-        return Status.RUNNING
+        return _RUNNING
 
     def on_pause(self, now: datetime) -> None:
         if self._deadline is not None:
