@@ -1,0 +1,58 @@
+"""``dms foxglove``: serve robots' keys live to Foxglove (:mod:`dms.foxglove_bridge`)."""
+
+from __future__ import annotations
+
+import signal
+import threading
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from dms.kernel.errors import ConfigError
+
+
+def foxglove(
+    connect: Annotated[
+        list[str] | None,
+        typer.Option(help="Zenoh endpoint of a daemon or router (default tcp/127.0.0.1:7447)."),
+    ] = None,
+    zenoh_config: Annotated[
+        Path | None, typer.Option("--zenoh-config", help="Zenoh JSON5 configuration file.")
+    ] = None,
+    port: Annotated[
+        int, typer.Option(help="WebSocket port for Foxglove.", min=0, max=65535)
+    ] = 8765,
+    host: Annotated[
+        str, typer.Option(help="Address to serve on (loopback unless you open it).")
+    ] = "127.0.0.1",
+    robot: Annotated[
+        list[str] | None,
+        typer.Option("--robot", help="Only this robot's keys (repeat; default every robot)."),
+    ] = None,
+) -> None:
+    """Bridge robots' keys live to Foxglove (its WebSocket protocol, with JSON Schemas)
+    until SIGINT or SIGTERM."""
+    from dms.bus import ZenohClient, make_client_config
+    from dms.foxglove_bridge import FoxgloveBridge
+
+    config = make_client_config(list(connect or []), zenoh_config)
+    stop = threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: stop.set())
+    try:  # the port first: a port in use is said before any network wait
+        bridge = FoxgloveBridge(host, port)
+    except (RuntimeError, OSError) as error:
+        raise ConfigError(f"--port {port}: {' '.join(str(error).split())}") from None
+    try:
+        with ZenohClient("foxglove", config) as client:
+            for pattern in [f"robots/{r}/**" for r in robot or []] or ["robots/**"]:
+                client.subscribe_raw(pattern, bridge.on_sample)
+            typer.echo(
+                f"dms foxglove: ws://{host}:{bridge.port} (Foxglove: Open connection, "
+                "Foxglove WebSocket)",
+                err=True,
+            )
+            stop.wait()
+    finally:
+        bridge.stop()
