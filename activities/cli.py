@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import shutil
+import subprocess
 import sys
 from collections.abc import Callable
 from enum import StrEnum
@@ -21,10 +23,35 @@ from dms.kernel.ports import RobotPort
 
 app = typer.Typer(no_args_is_help=True)
 
+SKIP = "skip"
+"""What ``step`` takes at a question to let it time out."""
+
 
 class DiagramFormat(StrEnum):
     DOT = "dot"
     MERMAID = "mermaid"
+    SVG = "svg"
+    PNG = "png"
+
+
+def _render(dot_text: str, fmt: DiagramFormat) -> bytes:
+    """SVG or PNG from Graphviz's ``dot`` (a one-line error where it is not installed)."""
+    dot = shutil.which("dot")
+    if dot is None:
+        typer.echo(
+            f"dms: --format {fmt.value} needs Graphviz's dot on PATH (apt-get install "
+            "graphviz); --format dot or mermaid need nothing",
+            err=True,
+        )
+        raise typer.Exit(1)
+    done = subprocess.run(
+        [dot, f"-T{fmt.value}"], input=dot_text.encode(), capture_output=True, timeout=60
+    )
+    if done.returncode != 0:
+        reason = " ".join(done.stderr.decode(errors="replace").split()) or "no reason given"
+        typer.echo(f"dms: dot -T{fmt.value} failed: {reason}", err=True)
+        raise typer.Exit(1)
+    return done.stdout
 
 
 def _user(user_id: str | None) -> dict[str, object]:
@@ -104,13 +131,31 @@ def _robot(seed: int) -> RobotPort:
 @app.command()
 def show(
     file: Annotated[Path, typer.Argument(help="A behavior file.")],
-    format: Annotated[DiagramFormat, typer.Option(help="dot or mermaid.")] = DiagramFormat.DOT,
+    format: Annotated[
+        DiagramFormat, typer.Option(help="dot, mermaid, or svg/png (drawn by Graphviz).")
+    ] = DiagramFormat.DOT,
     active: Annotated[str, typer.Option(help="A state path to highlight.")] = "",
+    output: Annotated[
+        Path | None, typer.Option("--output", "-o", help="Write here instead of stdout.")
+    ] = None,
 ) -> None:
-    """Print a diagram of the behavior's states and transitions (nested machines as clusters)."""
+    """A diagram of the behavior's states and transitions (nested machines as clusters)."""
     _library, spec = BehaviorLibrary.for_file(file)
-    draw = to_dot if format is DiagramFormat.DOT else to_mermaid
-    typer.echo(draw(spec, active), nl=False)
+    if format is DiagramFormat.MERMAID:
+        data = to_mermaid(spec, active).encode()
+    elif format is DiagramFormat.DOT:
+        data = to_dot(spec, active).encode()
+    else:
+        if output is None and format is DiagramFormat.PNG and sys.stdout.isatty():
+            typer.echo("dms: a PNG is not for a terminal: give --output FILE", err=True)
+            raise typer.Exit(1)
+        data = _render(to_dot(spec, active), format)
+    if output is not None:
+        output.write_bytes(data)
+    else:
+        sys.stdout.flush()
+        sys.stdout.buffer.write(data)
+        sys.stdout.buffer.flush()
 
 
 @app.command()
@@ -122,8 +167,10 @@ def step(
 ) -> None:
     """Run on the simulated robot one state at a time: Enter goes on.
 
-    Type an answer instead (said by the user), ``screen:CHOICE`` to tap the screen or
-    ``touch:PART`` to touch the robot; ``q`` stops. At the end of input it runs on.
+    At a question it waits for the answer: type it (said by the user), ``screen:CHOICE``
+    to tap the screen, ``touch:PART`` to touch the robot, or ``skip`` to let it time
+    out; ``q`` stops. Each step prints the state, what changed in the userdata and the
+    robot's commands. At the end of input it runs on.
     """
     library, spec = BehaviorLibrary.for_file(file)
     run = BehaviorRun(
@@ -140,6 +187,11 @@ def step(
             elif line.strip() == "q":
                 run.activity.cancel(run.clock.now())
                 break
+            elif not line.strip() and run.awaiting_answer:
+                typer.echo(f"  waiting for an answer: type it, or {SKIP!r} to let it time out")
+                continue
+            elif line.strip() == SKIP:
+                pass  # on to the question's timeout
             else:
                 try:
                     event = parse_input(line)

@@ -71,9 +71,53 @@ def test_step_goes_one_state_per_enter_and_takes_answers(tmp_path: Path) -> None
     assert states == ["HELLO", "ASK", "SAY", "-"]
     assert 'robot: cmd-1 speech.say {"text": "Hello Ana"}' in result.output
     assert "event taken" in result.output
-    assert '"answer": "blue"' in result.output  # userdata is printed
+    assert 'userdata.answer = "blue"' in result.output  # what changed is printed
     assert "You said blue" in result.output
     assert result.output.strip().endswith("completed: done")
+
+
+def test_step_waits_at_a_question_and_prints_only_what_changed() -> None:
+    """Issue 13: a second Enter no longer runs through the question's timeout, and a
+    step prints the userdata keys that changed (a long value cut), not all of it."""
+    result = runner.invoke(app, ["step", QUIZ, "--user", "ana"], input="\n\n\nParis\n6\nq\n")
+    assert result.exit_code == 0, result.output
+    out = result.output
+    assert out.count("waiting for an answer") == 2, out
+    assert "Sorry, I did not get that" in out, "a wrong answer: asked again, and waits"
+    assert "Correct! The answer is 6." in out
+    assert "MISSED" not in out, "no timeout went by"
+    assert out.count("userdata.score = 0") == 1
+    questions = next(line for line in out.splitlines() if "userdata.questions =" in line)
+    assert len(questions) < 160 and "characters)" in questions
+    assert out.count("userdata.questions") == 1, "an unchanged value is not printed again"
+
+
+def test_step_skip_lets_the_question_time_out() -> None:
+    result = runner.invoke(app, ["step", QUIZ], input="\nskip\nq\n")
+    assert result.exit_code == 0, result.output
+    asked = [line for line in result.output.splitlines() if "speech.say" in line]
+    assert sum("Question 1." in line for line in asked) == 2, "timed out, then asked again"
+    assert "waiting for an answer" not in result.output
+
+
+def test_show_draws_svg_and_png_with_graphviz(tmp_path: Path) -> None:
+    svg = runner.invoke(app, ["show", QUIZ, "--format", "svg"])
+    assert svg.exit_code == 0, svg.output
+    assert "<svg" in svg.output and "INTRO" in svg.output
+    png = tmp_path / "quiz.png"
+    done = runner.invoke(app, ["show", QUIZ, "--format", "png", "--output", str(png)])
+    assert done.exit_code == 0, done.output
+    assert png.read_bytes().startswith(b"\x89PNG\r\n")
+
+
+def test_show_svg_without_graphviz_is_one_line(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("PATH", "/nonexistent")
+    result = runner.invoke(app, ["show", QUIZ, "--format", "svg"])
+    assert result.exit_code == 1
+    assert result.output.strip().splitlines() == [
+        "dms: --format svg needs Graphviz's dot on PATH (apt-get install graphviz); "
+        "--format dot or mermaid need nothing"
+    ]
 
 
 def test_step_can_be_stopped() -> None:
