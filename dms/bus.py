@@ -71,9 +71,7 @@ def make_config(
     return config
 
 
-def make_router_config(
-    listen: Sequence[str] = (), config_file: Path | None = None
-) -> zenoh.Config:
+def make_router_config(listen: Sequence[str] = (), config_file: Path | None = None) -> zenoh.Config:
     """``dms router``'s configuration: the same endpoints and file, in router mode."""
     config = make_config(listen, (), config_file)
     config.insert_json5("mode", json.dumps("router"))
@@ -124,6 +122,14 @@ def open_session(config: zenoh.Config) -> zenoh.Session:
         return zenoh.open(config)
     except zenoh.ZError as error:
         raise ConfigError(f"cannot open the Zenoh session: {one_line(error)}") from None
+
+
+def check_key_expr(text: str) -> str:
+    """``text`` when it is a valid Zenoh key expression (wildcards allowed), else ConfigError."""
+    try:
+        return str(zenoh.KeyExpr.autocanonize(text))
+    except (zenoh.ZError, ValueError, TypeError) as error:
+        raise ConfigError(f"bad key expression {text!r}: {one_line(error)}") from None
 
 
 def encode(payload: Mapping[str, Any] | Sequence[Any]) -> bytes:
@@ -362,6 +368,26 @@ class ZenohClient:
                 parts = str(reply.ok.key_expr).split("/")
                 if len(parts) > 1:
                     found.add(parts[1])
+        return sorted(found)
+
+    def watch_tokens(self, key_expr: str, handler: Callable[[str, bool], None]) -> None:
+        """Call ``handler(full key, alive)`` for each liveliness token on an absolute key
+        expression: first for the tokens that exist now, then as they come and go."""
+
+        def on_token(sample: zenoh.Sample) -> None:
+            handler(str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)
+
+        self._entities.append(
+            self.session.liveliness().declare_subscriber(key_expr, on_token, history=True)
+        )
+
+    def tokens(self, key_expr: str, timeout_s: float = 2.0) -> list[str]:
+        """The liveliness tokens that exist now on an absolute key expression, sorted."""
+        found = {
+            str(reply.ok.key_expr)
+            for reply in self.session.liveliness().get(key_expr, timeout=timeout_s)
+            if reply.ok is not None
+        }
         return sorted(found)
 
     def close(self) -> None:

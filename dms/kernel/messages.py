@@ -10,9 +10,17 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, StringConstraints, field_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    SerializerFunctionWrapHandler,
+    StringConstraints,
+    field_validator,
+    model_serializer,
+)
 
 from dms.kernel.activity_names import ACTIVITIES
 from dms.kernel.ids import Identifier
@@ -35,6 +43,21 @@ class Outbound(BaseModel):
     """A message the daemon publishes."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class _OmitsUnset(Outbound):
+    """An outbound part whose optional additions (:attr:`_OPTIONAL`) are left out of the
+    JSON while they are None: a message stays as it was until a field is filled."""
+
+    _OPTIONAL: ClassVar[tuple[str, ...]] = ()
+
+    @model_serializer(mode="wrap")
+    def _omit_unset(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
+        data: dict[str, Any] = handler(self)
+        for name in self._OPTIONAL:
+            if data.get(name, False) is None:
+                del data[name]
+        return data
 
 
 # ---------------------------------------------------------------- inbound
@@ -143,9 +166,16 @@ class ErrorReport(Outbound):
     time: str
 
 
-class UserState(Outbound):
+class UserState(_OmitsUnset):
+    _OPTIONAL = ("proactivity", "p_user")
+
     id: str
     ready: bool
+    proactivity: str | None = None
+    """Optional: the user's proactivity as the profile holds it (``low``, ``moderate``,
+    ``high`` or ``unknown``), for a viewer."""
+    p_user: float | None = None
+    """Optional: the probability that the user takes the initiative in this session."""
 
 
 class ActivityState(Outbound):
@@ -155,11 +185,16 @@ class ActivityState(Outbound):
     state: str
 
 
-class MotivationSnapshot(Outbound):
+class MotivationSnapshot(_OmitsUnset):
+    _OPTIONAL = ("thresholds",)
+
     dominant: str | None
     drives: dict[str, float]
     motivations: dict[str, float]
     wellbeing: float
+    thresholds: dict[str, float] | None = None
+    """Optional: each drive's threshold (below it the drive gives no motivation), for a
+    viewer's chart."""
 
 
 InputStatus = Literal["ok", "stale", "missing"]

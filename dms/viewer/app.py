@@ -1,0 +1,98 @@
+"""The viewer's web side: the page, its static files and a server-sent event stream.
+
+``GET /`` is the page, ``GET /static/...`` its script, style and chart library (shipped in
+the package), ``GET /events`` the stream: one ``snapshot`` event with everything the
+model holds, then each change as it happens: ``robot``, ``state``, ``decision``,
+``structure``, ``agenda`` and ``report`` (a ``dms/errors`` message; an event named
+``error`` would be taken by the browser for the stream's own failure). ``GET
+/api/snapshot`` is the snapshot as JSON (for scripts and tests). A page that falls too far
+behind is cut off; its browser reconnects at once and starts again from a fresh snapshot.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+from collections.abc import AsyncIterator
+from contextlib import suppress
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from starlette.applications import Starlette
+from starlette.requests import Request
+from starlette.responses import FileResponse, JSONResponse, Response, StreamingResponse
+from starlette.routing import Mount, Route
+from starlette.staticfiles import StaticFiles
+
+from dms.viewer.model import LiveModel
+
+STATIC = Path(str(resources.files("dms.viewer") / "static"))
+KEEPALIVE_S = 15.0
+"""A comment line this often keeps proxies and the browser from closing a quiet stream."""
+QUEUE_LIMIT = 5000
+"""Events a page may lag behind before it is cut off (it reconnects to a fresh snapshot)."""
+
+_Event = tuple[str, dict[str, Any]] | None
+
+
+def sse(name: str, data: Any) -> str:
+    """One server-sent event (JSON data on one line: JSON escapes line breaks)."""
+    return f"event: {name}\ndata: {json.dumps(data, separators=(',', ':'), allow_nan=False)}\n\n"
+
+
+def create_app(model: LiveModel) -> Starlette:
+    async def index(_request: Request) -> Response:
+        return FileResponse(STATIC / "index.html", headers={"Cache-Control": "no-store"})
+
+    async def snapshot(_request: Request) -> Response:
+        return JSONResponse(model.snapshot())
+
+    async def events(_request: Request) -> Response:
+        loop = asyncio.get_running_loop()
+        pending: asyncio.Queue[_Event] = asyncio.Queue()
+        cut = False
+
+        def put(event: _Event) -> None:
+            nonlocal cut
+            if cut:
+                return
+            if pending.qsize() >= QUEUE_LIMIT:
+                cut = True
+                event = None
+            pending.put_nowait(event)
+
+        def listener(name: str, data: dict[str, Any]) -> None:
+            with suppress(RuntimeError):  # the server is stopping: its loop is closed
+                loop.call_soon_threadsafe(put, (name, data))
+
+        async def stream() -> AsyncIterator[str]:
+            first = model.attach(listener)
+            try:
+                yield "retry: 1000\n" + sse("snapshot", first)
+                while True:
+                    try:
+                        event = await asyncio.wait_for(pending.get(), KEEPALIVE_S)
+                    except TimeoutError:
+                        yield ": keepalive\n\n"
+                        continue
+                    if event is None:
+                        return
+                    yield sse(*event)
+            finally:
+                model.detach(listener)
+
+        return StreamingResponse(
+            stream(),
+            media_type="text/event-stream",
+            headers={"Cache-Control": "no-store", "X-Accel-Buffering": "no"},
+        )
+
+    return Starlette(
+        routes=[
+            Route("/", index),
+            Route("/events", events),
+            Route("/api/snapshot", snapshot),
+            Mount("/static", StaticFiles(directory=STATIC), name="static"),
+        ]
+    )

@@ -1,0 +1,102 @@
+"""``dms view``: serve the live page of the daemons on the bus until Ctrl-C."""
+
+from __future__ import annotations
+
+import socket
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from dms.kernel.errors import ConfigError
+from dms.kernel.keys import ROBOT_ID_RE
+
+DEFAULT_PORT = 8080
+
+
+def check_robot_ids(robots: list[str]) -> list[str]:
+    for robot in robots:
+        if not ROBOT_ID_RE.match(robot):
+            raise ConfigError(f"--robot: {robot!r} does not match [a-z0-9_-]+")
+    return robots
+
+
+def bind(host: str, port: int) -> socket.socket:
+    """The listening socket, bound before anything else starts: a port in use is one line."""
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+    except socket.gaierror as error:
+        raise ConfigError(f"--host {host}: {error.strerror}") from None
+    family, kind, proto, _name, address = infos[0]
+    sock = socket.socket(family, kind, proto)
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.bind(address)
+        sock.listen(128)
+    except OSError as error:
+        sock.close()
+        raise ConfigError(f"cannot serve on {host}:{port}: {error.strerror or error}") from None
+    return sock
+
+
+def view_command(
+    connect: Annotated[
+        list[str] | None,
+        typer.Option(
+            help="Zenoh endpoint of a daemon or router (repeat for more).",
+            show_default="tcp/127.0.0.1:7447",
+        ),
+    ] = None,
+    zenoh_config: Annotated[
+        Path | None, typer.Option("--zenoh-config", help="Zenoh JSON5 configuration file.")
+    ] = None,
+    port: Annotated[
+        int, typer.Option(min=0, max=65535, help="HTTP port (0: any free port).")
+    ] = DEFAULT_PORT,
+    host: Annotated[
+        str, typer.Option(help="Address to serve on; the page has no login: keep it on loopback.")
+    ] = "127.0.0.1",
+    robot: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--robot",
+            "--robot-id",
+            help="Show only this robot (repeat for more).",
+            show_default="every robot on the bus",
+        ),
+    ] = None,
+) -> None:
+    """Serve a live web page of the robots on the bus.
+
+    The page shows each robot's activity with its state machine, the session, the drives
+    over the last hour, the decisions with their why, the inputs, the agenda and the errors.
+    """
+    from dms.bus import ZenohClient, make_client_config
+    from dms.viewer.app import create_app
+    from dms.viewer.model import LiveModel
+    from dms.viewer.server import serve
+    from dms.viewer.source import BusSource
+    from motivation.config import MotivationConfig
+
+    robots = check_robot_ids(list(robot or []))
+    config = make_client_config(connect or (), zenoh_config)  # a bad file fails before the port
+    sock = bind(host, port)
+    try:
+        defaults = {name: drive.threshold for name, drive in MotivationConfig().drives.items()}
+        model = LiveModel(robots, default_thresholds=defaults)
+        with ZenohClient(robots[0] if robots else "mini", config) as client:
+            source = BusSource(client, model, robots)
+            source.start()
+            try:
+                address = sock.getsockname()
+                url = f"http://{_url_host(host)}:{address[1]}/"
+                watched = ", ".join(robots) if robots else "every robot on the bus"
+                serve(create_app(model), sock, f"dms: viewer on {url} ({watched}); Ctrl-C stops")
+            finally:
+                source.close()
+    finally:
+        sock.close()
+
+
+def _url_host(host: str) -> str:
+    return f"[{host}]" if ":" in host else host

@@ -1,0 +1,371 @@
+"""What the live page shows, per robot, kept up to date from the bus (any thread).
+
+The model knows no Zenoh and no web: the source (:mod:`dms.viewer.source`) calls its
+``on_*`` methods with decoded JSON, and each change goes to the listeners (one per open
+page) as an event ``(name, data)``. A page that connects gets :meth:`LiveModel.attach`'s
+snapshot and every event after it, in order: both happen under one lock.
+
+What daemons publish is read loosely: an unknown field is ignored and a field of the
+wrong type is treated as absent, so that a newer (or a broken) daemon never stops the
+viewer. The page shows every text with ``textContent``: an error may quote a hostile input.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterable, Mapping
+from contextlib import suppress
+from dataclasses import dataclass, field
+from datetime import datetime
+from typing import Any
+
+from dms.kernel import keys
+
+HISTORY_S = 3600.0
+"""How far back the drives chart goes."""
+SAMPLE_EVERY_S = 1.0
+"""At most one chart point a second per robot (the state comes twice a second)."""
+MAX_DECISIONS = 200
+MAX_ERRORS = 100
+RETRY_STRUCTURE_S = 3.0
+"""How soon a behavior structure that did not come (or came for another activity) is asked again."""
+
+Listener = Callable[[str, dict[str, Any]], None]
+"""Called with (event name, data) under the model's lock: it must not block."""
+Need = Callable[[str, str], None]
+"""Called with (robot id, ``"behavior"`` or ``"agenda"``) when the model wants a query made."""
+
+
+@dataclass
+class RobotView:
+    """One robot as the page sees it."""
+
+    robot: str
+    alive: bool = False
+    since: float | None = None
+    """When ``alive`` last changed (epoch seconds)."""
+    tokens: set[str] = field(default_factory=set)
+    """Liveliness tokens under ``robots/<id>/alive/`` other than ``dms``."""
+    state: dict[str, Any] | None = None
+    structure: dict[str, Any] | None = None
+    """The last ``dms/behavior`` reply, or ``{"activity": name, "error": ...}``."""
+    asked_for: str | None = None
+    asked_at: float = -math.inf
+    agenda: dict[str, Any] | None = None
+    thresholds: dict[str, float] = field(default_factory=dict)
+    thresholds_source: str = "none"
+    samples: deque[list[Any]] = field(default_factory=deque)
+    decisions: deque[dict[str, Any]] = field(default_factory=lambda: deque(maxlen=MAX_DECISIONS))
+    errors: deque[dict[str, Any]] = field(default_factory=lambda: deque(maxlen=MAX_ERRORS))
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "robot": self.robot,
+            "alive": self.alive,
+            "since": self.since,
+            "tokens": sorted(self.tokens),
+            "state": self.state,
+            "structure": self.structure,
+            "agenda": self.agenda,
+            "thresholds": self.thresholds,
+            "thresholds_source": self.thresholds_source,
+            "samples": list(self.samples),
+            "decisions": list(self.decisions),
+            "errors": list(self.errors),
+        }
+
+
+def robot_of(key_expr: str) -> str | None:
+    """The robot id of ``robots/<id>/...``, or None."""
+    parts = key_expr.split("/", 2)
+    if len(parts) < 3 or parts[0] != "robots" or not keys.ROBOT_ID_RE.match(parts[1]):
+        return None
+    return parts[1]
+
+
+def epoch(iso_time: Any, default: float) -> float:
+    """Epoch seconds of an ISO-8601 time (``2026-11-22T10:00:00.500Z``), else ``default``."""
+    if not isinstance(iso_time, str):
+        return default
+    try:
+        return datetime.fromisoformat(iso_time.replace("Z", "+00:00")).timestamp()
+    except ValueError:
+        return default
+
+
+def _numbers(value: Any) -> dict[str, float]:
+    """The finite numbers of a ``{name: number}`` object (anything else dropped)."""
+    if not isinstance(value, Mapping):
+        return {}
+    out: dict[str, float] = {}
+    for name, number in value.items():
+        if (
+            isinstance(name, str)
+            and isinstance(number, int | float)
+            and not isinstance(number, bool)
+            and math.isfinite(number)
+        ):
+            out[name] = float(number)
+    return out
+
+
+def _dict(value: Any) -> dict[str, Any] | None:
+    return value if isinstance(value, dict) else None
+
+
+class LiveModel:
+    """Every robot's view, the listeners, and the queries it wants made."""
+
+    def __init__(
+        self,
+        robots: Iterable[str] = (),
+        default_thresholds: Mapping[str, float] | None = None,
+        clock: Callable[[], float] = time.time,
+    ) -> None:
+        """``robots``: only these (empty: every robot on the bus). ``default_thresholds``:
+        the drives' thresholds to draw when a daemon's state does not carry its own."""
+        self._lock = threading.Lock()
+        self._wanted = frozenset(robots)
+        self._robots: dict[str, RobotView] = {}
+        self._listeners: list[Listener] = []
+        self._default_thresholds = dict(default_thresholds or {})
+        self._clock = clock
+        self.need: Need = lambda _robot, _what: None
+
+    # ------------------------------------------------------------------ the web side
+
+    def attach(self, listener: Listener) -> dict[str, Any]:
+        """Register a page's listener; returns the snapshot its events follow."""
+        with self._lock:
+            self._listeners.append(listener)
+            return self._snapshot()
+
+    def detach(self, listener: Listener) -> None:
+        with self._lock, suppress(ValueError):
+            self._listeners.remove(listener)
+
+    def snapshot(self) -> dict[str, Any]:
+        with self._lock:
+            return self._snapshot()
+
+    def robot_ids(self) -> list[str]:
+        with self._lock:
+            return sorted(self._robots)
+
+    def agenda_due(self) -> list[str]:
+        """The robots alive now, whose agenda is worth asking for."""
+        with self._lock:
+            return sorted(r for r, view in self._robots.items() if view.alive)
+
+    def _snapshot(self) -> dict[str, Any]:
+        return {
+            "history_s": HISTORY_S,
+            "now": self._clock(),
+            "robots": {robot: view.to_json() for robot, view in sorted(self._robots.items())},
+        }
+
+    def _emit(self, name: str, data: dict[str, Any]) -> None:
+        for listener in list(self._listeners):
+            listener(name, data)
+
+    def _view(self, robot: str) -> RobotView | None:
+        if self._wanted and robot not in self._wanted:
+            return None
+        view = self._robots.get(robot)
+        if view is None:
+            view = self._robots[robot] = RobotView(robot)
+        return view
+
+    # ------------------------------------------------------------------ the bus side
+
+    def on_token(self, key_expr: str, alive: bool) -> None:
+        """A liveliness token under ``robots/<id>/alive/`` came or went."""
+        robot = robot_of(key_expr)
+        if robot is None:
+            return
+        name = key_expr[len(keys.absolute(robot, keys.ALIVE_PREFIX)) :]
+        wanted: list[str] = []
+        with self._lock:
+            view = self._view(robot)
+            if view is None:
+                return
+            if name == "dms":
+                if view.alive != alive:
+                    view.alive, view.since = alive, self._clock()
+                if alive:  # a (re)started daemon: what it runs and its agenda, afresh
+                    view.asked_for, view.asked_at = None, -math.inf
+                    wanted = ["agenda"]
+            elif alive:
+                view.tokens.add(name)
+            else:
+                view.tokens.discard(name)
+            self._emit("robot", self._robot_event(view))
+        for what in wanted:
+            self.need(robot, what)
+
+    @staticmethod
+    def _robot_event(view: RobotView) -> dict[str, Any]:
+        return {
+            "robot": view.robot,
+            "alive": view.alive,
+            "since": view.since,
+            "tokens": sorted(view.tokens),
+        }
+
+    def on_state(self, robot: str, state: Any) -> None:
+        """One ``dms/state``: the page's state, and a chart point at most every second."""
+        if not isinstance(state, dict):
+            return
+        wanted: list[str] = []
+        with self._lock:
+            view = self._view(robot)
+            if view is None:
+                return
+            previous = view.state or {}
+            view.state = state
+            now = self._clock()
+            sample = self._sample(view, state, now)
+            self._thresholds(view, state)
+            activity = _dict(state.get("activity"))
+            name = activity.get("name") if activity is not None else None
+            if self._wants_structure(view, name, previous, state, now):
+                view.asked_for, view.asked_at = name, now
+                wanted.append("behavior")
+            elif name is None and view.structure is not None:
+                view.structure = None
+                self._emit("structure", {"robot": robot, "structure": None})
+            if _user_id(previous) != _user_id(state):
+                wanted.append("agenda")
+            self._emit(
+                "state",
+                {
+                    "robot": robot,
+                    "state": state,
+                    "sample": sample,
+                    "thresholds": view.thresholds,
+                    "thresholds_source": view.thresholds_source,
+                },
+            )
+        for what in wanted:
+            self.need(robot, what)
+
+    def _sample(self, view: RobotView, state: dict[str, Any], now: float) -> list[Any] | None:
+        motivation = _dict(state.get("motivation")) or {}
+        wellbeing = _numbers({"w": motivation.get("wellbeing")}).get("w")
+        drives = _numbers(motivation.get("drives"))
+        if not drives and wellbeing is None:
+            return None
+        t = epoch(state.get("time"), now)
+        if view.samples and t - view.samples[-1][0] < SAMPLE_EVERY_S:
+            return None
+        sample = [t, drives, _numbers(motivation.get("motivations")), wellbeing]
+        view.samples.append(sample)
+        while view.samples and view.samples[0][0] < t - HISTORY_S:
+            view.samples.popleft()
+        return sample
+
+    def _thresholds(self, view: RobotView, state: dict[str, Any]) -> None:
+        motivation = _dict(state.get("motivation")) or {}
+        published = _numbers(motivation.get("thresholds"))
+        if published:
+            view.thresholds, view.thresholds_source = published, "daemon"
+        elif view.thresholds_source != "daemon":
+            drives = _numbers(motivation.get("drives"))
+            view.thresholds = {
+                name: value for name, value in self._default_thresholds.items() if name in drives
+            }
+            view.thresholds_source = "defaults" if view.thresholds else "none"
+
+    @staticmethod
+    def _wants_structure(
+        view: RobotView,
+        name: Any,
+        previous: dict[str, Any],
+        state: dict[str, Any],
+        now: float,
+    ) -> bool:
+        """Ask ``dms/behavior`` again when the activity changed, the rules and behaviors
+        were reloaded, or the active state is not in the structure held."""
+        if not isinstance(name, str):
+            return False
+        have = view.structure.get("activity") if view.structure is not None else None
+        stale = have != name or previous.get("reloads") != state.get("reloads")
+        if not stale and view.structure is not None and "error" not in view.structure:
+            activity = _dict(state.get("activity")) or {}
+            stale = not _path_known(view.structure.get("structure"), activity.get("state"))
+        if not stale:
+            return False
+        return view.asked_for != name or now - view.asked_at >= RETRY_STRUCTURE_S
+
+    def on_decision(self, robot: str, decision: Any) -> None:
+        if not isinstance(decision, dict):
+            return
+        with self._lock:
+            view = self._view(robot)
+            if view is None:
+                return
+            view.decisions.append(decision)
+            if decision.get("action") == "start":  # the same activity again is a new run
+                view.asked_for, view.asked_at = None, -math.inf
+                view.structure = None
+            self._emit("decision", {"robot": robot, "decision": decision})
+
+    def on_error(self, robot: str, report: Any) -> None:
+        if not isinstance(report, dict):
+            return
+        with self._lock:
+            view = self._view(robot)
+            if view is None:
+                return
+            view.errors.append(report)
+            self._emit("report", {"robot": robot, "error": report})
+
+    def set_structure(self, robot: str, reply: dict[str, Any]) -> None:
+        """A ``dms/behavior`` reply, or ``{"error": why}`` (for the activity asked about)."""
+        with self._lock:
+            view = self._view(robot)
+            if view is None:
+                return
+            if "error" in reply:
+                view.structure = {"activity": view.asked_for, "error": reply["error"]}
+            elif reply.get("activity") is None:
+                view.structure = None
+            else:
+                view.structure = reply
+            self._emit("structure", {"robot": robot, "structure": view.structure})
+
+    def set_agenda(self, robot: str, agenda: dict[str, Any]) -> None:
+        """``{"items": [...]}`` or ``{"error": why}``; stamped with the time it was read."""
+        with self._lock:
+            view = self._view(robot)
+            if view is None:
+                return
+            view.agenda = {**agenda, "read": self._clock()}
+            self._emit("agenda", {"robot": robot, "agenda": view.agenda})
+
+
+def _user_id(state: dict[str, Any]) -> Any:
+    user = _dict(state.get("user"))
+    return user.get("id") if user is not None else None
+
+
+def _path_known(structure: Any, path: Any) -> bool:
+    """Whether every state named on the active path (``A/B,C/D``) is in the structure."""
+    if not isinstance(path, str) or not path:
+        return True
+    names: set[str] = set()
+
+    def walk(node: Any) -> None:
+        if isinstance(node, dict):
+            name = node.get("name")
+            if isinstance(name, str):
+                names.add(name)
+            for child in node.get("states") or ():
+                walk(child)
+
+    if isinstance(structure, dict):
+        walk(structure.get("root"))
+    return all(part in names for branch in path.split(",") for part in branch.split("/") if part)

@@ -1,0 +1,38 @@
+"""uvicorn on a socket the viewer bound itself, saying on stderr when it serves."""
+
+from __future__ import annotations
+
+import socket
+import sys
+from types import FrameType
+
+import uvicorn
+from starlette.applications import Starlette
+
+GRACE_S = 2
+"""How long open pages are given to close when the viewer stops."""
+
+
+class _Server(uvicorn.Server):
+    def __init__(self, config: uvicorn.Config, ready_line: str) -> None:
+        super().__init__(config)
+        self._ready_line = ready_line
+
+    def handle_exit(self, sig: int, frame: FrameType | None) -> None:
+        """Stop, without uvicorn raising the signal again afterwards: SIGINT and SIGTERM
+        are how the viewer is meant to stop, so it exits 0."""
+        super().handle_exit(sig, frame)
+        self._captured_signals.clear()
+
+    async def startup(self, sockets: list[socket.socket] | None = None) -> None:
+        await super().startup(sockets)
+        if not self.should_exit:  # a script (or a test) waits for this line
+            print(self._ready_line, file=sys.stderr, flush=True)
+
+
+def serve(app: Starlette, sock: socket.socket, ready_line: str) -> None:
+    """Serve ``app`` on ``sock`` until SIGINT or SIGTERM."""
+    config = uvicorn.Config(
+        app, log_level="warning", access_log=False, timeout_graceful_shutdown=GRACE_S
+    )
+    _Server(config, ready_line).run(sockets=[sock])

@@ -1,0 +1,142 @@
+"""The viewer's side of the bus: subscriptions that feed :class:`LiveModel`, and a worker
+thread for the queries it asks for (a query is never made from a Zenoh callback).
+
+Per robot (or ``robots/*`` when none is named): the ``alive/**`` tokens, ``dms/state``,
+``dms/decision`` and ``dms/errors``; ``dms/behavior`` when the activity changes, and
+``agenda/*`` when the user changes and every :data:`AGENDA_EVERY_S` seconds. An agenda
+that the daemon does not serve (``[privacy] serve_profiles``, or the viewer's role in a
+secured deployment) is shown with the daemon's reason.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import queue
+import threading
+import time
+from collections.abc import Sequence
+from typing import Any
+
+from dms.bus import ZenohClient
+from dms.kernel import keys
+from dms.viewer.model import LiveModel, robot_of
+
+log = logging.getLogger(__name__)
+
+AGENDA_EVERY_S = 30.0
+QUERY_TIMEOUT_S = 3.0
+
+
+class BusSource:
+    """Feeds ``model`` from ``client`` until :meth:`close`."""
+
+    def __init__(self, client: ZenohClient, model: LiveModel, robots: Sequence[str] = ()) -> None:
+        self.client = client
+        self.model = model
+        self.robots = list(robots) or ["*"]
+        self._jobs: queue.Queue[tuple[str, str] | None] = queue.Queue()
+        self._worker = threading.Thread(target=self._work, name="dms-view-queries", daemon=True)
+        self._agenda_read: dict[str, float] = {}
+
+    def start(self) -> None:
+        self.model.need = self.need
+        self._worker.start()
+        for robot in self.robots:
+            self.client.subscribe_raw(
+                keys.absolute(robot, keys.DMS_STATE), self._json(self.model.on_state)
+            )
+            self.client.subscribe_raw(
+                keys.absolute(robot, keys.DMS_DECISION), self._json(self.model.on_decision)
+            )
+            self.client.subscribe_raw(
+                keys.absolute(robot, keys.DMS_ERRORS), self._json(self.model.on_error)
+            )
+            self.client.watch_tokens(
+                keys.absolute(robot, keys.ALIVE_PREFIX + "**"), self.model.on_token
+            )
+
+    @staticmethod
+    def _json(handler: Any) -> Any:
+        def on_sample(key_expr: str, raw: bytes) -> None:
+            robot = robot_of(key_expr)
+            if robot is None:
+                return
+            try:
+                payload = json.loads(raw)
+            except ValueError:
+                return  # not a daemon's: the daemon publishes JSON only
+            handler(robot, payload)
+
+        return on_sample
+
+    def need(self, robot: str, what: str) -> None:
+        """Ask for a query (from any thread, without blocking)."""
+        self._jobs.put((robot, what))
+
+    def close(self) -> None:
+        self._jobs.put(None)
+        self._worker.join(timeout=2 * QUERY_TIMEOUT_S)
+
+    # ------------------------------------------------------------------ the worker
+
+    def _work(self) -> None:
+        while True:
+            try:
+                job = self._jobs.get(timeout=self._until_agenda())
+            except queue.Empty:
+                job = ("", "agenda-poll")
+            if job is None:
+                return
+            robot, what = job
+            try:
+                if what == "behavior":
+                    self._read_behavior(robot)
+                elif what == "agenda":
+                    self._read_agenda(robot)
+                else:
+                    for alive in self.model.agenda_due():
+                        self._read_agenda(alive)
+            except Exception:  # one failed query must not end the worker
+                log.exception("query %s for %s", what, robot)
+
+    def _until_agenda(self) -> float:
+        if not self._agenda_read:
+            return AGENDA_EVERY_S
+        oldest = min(self._agenda_read.values())
+        return max(0.1, oldest + AGENDA_EVERY_S - time.monotonic())
+
+    def _read_behavior(self, robot: str) -> None:
+        replies = self._query(robot, keys.DMS_BEHAVIOR)
+        state = next((body for ok, body in replies if ok and isinstance(body, dict)), None)
+        if state is not None:
+            self.model.set_structure(robot, state)
+        else:
+            why = _reason(replies[0][1]) if replies else "no reply to dms/behavior"
+            self.model.set_structure(robot, {"error": why})
+
+    def _read_agenda(self, robot: str) -> None:
+        self._agenda_read[robot] = time.monotonic()
+        replies = self._query(robot, keys.AGENDA_PREFIX + "*")
+        if not replies:
+            self.model.set_agenda(
+                robot, {"error": "no reply (the daemon has no agenda, or is gone)"}
+            )
+            return
+        ok, body = replies[0]
+        if ok and isinstance(body, dict) and isinstance(body.get("items"), list):
+            self.model.set_agenda(robot, {"items": body["items"]})
+        else:
+            self.model.set_agenda(robot, {"error": _reason(body)})
+
+    def _query(self, robot: str, key: str) -> list[tuple[bool, Any]]:
+        try:
+            return self.client.query_absolute(keys.absolute(robot, key), timeout_s=QUERY_TIMEOUT_S)
+        except ValueError:
+            return [(False, {"error": "the reply is not JSON"})]
+
+
+def _reason(body: Any) -> str:
+    if isinstance(body, dict) and isinstance(body.get("error"), str):
+        return str(body["error"])
+    return "the reply is not understood"
