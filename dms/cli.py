@@ -20,16 +20,19 @@ from activities.cli import use_robot
 from agenda.cli import app as agenda_app
 from dms.fleet_cli import app as fleet_app
 from dms.fleet_cli import router as router_command
+from dms.foxglove_cli import foxglove as foxglove_command
 from dms.kernel.errors import DmsError
 from dms.kernel.ports import RobotPort
+from dms.operator_cli import echo_command, state_command, topics_command
 from dms.rules_cli import app as rules_app
 from dms.secure_cli import app as secure_app
+from dms.viewer.cli import view_command
 from memory.cli import DbOption, first_line, upgrade_profiles
 from memory.cli import app as users_app
 from memory.sessions_cli import app as sessions_app
 from motivation.cli import app as motivation_app
 from sim.cli import app as sim_app
-from sim.cli import record_command
+from sim.cli import record_app
 
 if TYPE_CHECKING:
     from dms.config import Settings
@@ -120,9 +123,14 @@ app.add_typer(motivation_app, name="motivation", help="The motivational model.")
 app.add_typer(behavior_app, name="behavior", help="Behavior files: check, draw, step, run.")
 app.add_typer(sim_app, name="sim", help="Simulated sessions, studies and long-term runs.")
 app.add_typer(secure_app, name="secure", help="Mutual TLS and access control per role.")
-app.command("record")(record_command)
+app.add_typer(record_app, name="record")
 app.add_typer(fleet_app, name="fleet", help="The robots of a fleet: status.")
 app.command("router")(router_command)
+app.command("foxglove")(foxglove_command)
+app.command("view")(view_command)
+app.command("topics")(topics_command)
+app.command("echo")(echo_command)
+app.command("state")(state_command)
 
 
 @app.command()

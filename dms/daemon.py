@@ -22,7 +22,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
-from activities import reload_rules_and_behaviors
+from activities import BehaviorLibrary, reload_rules_and_behaviors
 from agenda.zenoh_api import ALL_USERS, handle_query
 from dms.assembly import Stack, build_stack
 from dms.bus import ZenohBus, make_config
@@ -53,6 +53,9 @@ log = logging.getLogger(__name__)
 
 
 QueryHandler = Callable[[str, bytes | None], tuple[bool, Any]]
+
+CONFIG_KEY = "dms/config"
+"""The queryable that answers with :func:`config_snapshot` (``dms record`` stores it)."""
 
 NOT_SERVED = (
     "personal data is not served to other processes: set [privacy] serve_profiles = true"
@@ -94,6 +97,49 @@ def short_why(decision: Decision) -> str:
     if why.motivation is not None and decision.chosen_by == "motivation":
         parts.append(f"dominant {why.motivation.dominant or 'none'}")
     return "; ".join(parts)
+
+
+def config_snapshot(settings: Settings, library: BehaviorLibrary) -> dict[str, Any]:
+    """What a replay needs besides the messages: the seed, the versions, the settings (not
+    the database URL, which may hold a password) and the text of the rule, behavior and
+    content files in force, named as ``dms record`` stores them (``rules/0/x.dmsl``,
+    ``behaviors/quiz.yaml``, ``content/quiz.yaml``: the first content file of a name, in
+    the library's search order)."""
+    import platform
+    from importlib.metadata import PackageNotFoundError, version
+
+    files: list[dict[str, Any]] = []
+
+    def add(name: str, path: Path) -> None:
+        try:
+            files.append({"name": name, "path": str(path), "text": path.read_text("utf-8")})
+        except (OSError, UnicodeDecodeError) as error:
+            log.warning("dms/config: %s not stored: %s", path, error)
+
+    for index, path in enumerate(settings.rules.files):
+        add(f"rules/{index}/{path.name}", path)
+    if settings.rules.schema_file is not None:
+        add(f"rules/schema/{settings.rules.schema_file.name}", settings.rules.schema_file)
+    if library.directory is not None and library.directory.is_dir():
+        for path in sorted(library.directory.glob("*.yaml")):
+            add(f"behaviors/{path.name}", path)
+    seen: set[str] = set()
+    for folder in library.content_dirs():
+        for path in sorted(folder.glob("*.yaml")) if folder.is_dir() else ():
+            if path.name not in seen:
+                seen.add(path.name)
+                add(f"content/{path.name}", path)
+    try:
+        dms_version = version("dms")
+    except PackageNotFoundError:
+        dms_version = "unknown"
+    return {
+        "robot_id": settings.robot_id,
+        "seed": settings.seed,
+        "versions": {"dms": dms_version, "python": platform.python_version()},
+        "settings": settings.model_dump(mode="json", exclude={"db", "source"}),
+        "files": files,
+    }
 
 
 class Daemon:
@@ -255,6 +301,9 @@ class Daemon:
 
         return serve
 
+    def _query_config(self, _key: str, _payload: bytes | None) -> tuple[bool, Any]:
+        return True, config_snapshot(self.settings, self.stack.library)
+
     def _query_behavior(self, _key: str, _payload: bytes | None) -> tuple[bool, Any]:
         with self._lock:
             controller = self.stack.controller
@@ -275,6 +324,7 @@ class Daemon:
             keys.USERS_PREFIX: self._query_users,
             keys.AGENDA_PREFIX: self._query_agenda,
             keys.DMS_BEHAVIOR: self._query_behavior,
+            CONFIG_KEY: self._query_config,
         }
         self.bus.start(
             self.on_input,

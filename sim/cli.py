@@ -17,7 +17,9 @@ import typer
 from sim.errors import ExpectationFailed, SimError
 
 if TYPE_CHECKING:
+    from dms.bus import ZenohClient
     from dms.config import Settings
+    from sim.recording import McapRecorder
 
 app = typer.Typer(no_args_is_help=True)
 
@@ -261,9 +263,13 @@ def longterm_command(
 @app.command("replay")
 def replay_command(
     recording: Annotated[Path, typer.Argument(help="An MCAP file written by dms record.")],
-    seed: Annotated[int, typer.Option(help="Seed of the replayed controller.")] = 0,
+    seed: Annotated[
+        int | None,
+        typer.Option(help="Seed of the replayed controller (default: the recorded one, else 0)."),
+    ] = None,
     config: Annotated[
-        Path | None, typer.Option(help="The recorded daemon's TOML configuration.")
+        Path | None,
+        typer.Option(help="A TOML configuration in place of the recorded daemon's."),
     ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the report as JSON.")] = False,
 ) -> None:
@@ -274,10 +280,12 @@ def replay_command(
     from dms.config import load_config
     from sim.replay import replay
 
-    settings = load_config(config) if config is not None else None
+    settings = load_config(config, use_environment=False) if config is not None else None
     if settings is not None:
         settings = settings.model_copy(update={"db": None})  # never the recorded store
-    report = replay(recording, seed=settings.seed or seed if settings else seed, settings=settings)
+    if seed is None and settings is not None:
+        seed = settings.seed
+    report = replay(recording, seed=seed, settings=settings)
     if as_json:
         _print_json(report.to_json())
     else:
@@ -335,33 +343,196 @@ def personas_command() -> None:
         typer.echo(f"{name:<10} {persona.proactivity:<9} {persona.description}")
 
 
+record_app = typer.Typer()
+
+
+@record_app.callback(invoke_without_command=True)
 def record_command(
-    out: Annotated[Path, typer.Option("--out", help="The MCAP file to write.")],
-    robot_id: Annotated[str, typer.Option("--robot-id", help="Robot id.")] = "mini",
-    connect: Annotated[list[str] | None, typer.Option(help="Zenoh endpoint to connect to.")] = None,
+    ctx: typer.Context,
+    out: Annotated[
+        Path | None, typer.Option("--out", help="The MCAP file to write.", show_default=False)
+    ] = None,
+    robot_id: Annotated[
+        str, typer.Option("--robot-id", envvar="DMS_ROBOT_ID", help="Robot id.")
+    ] = "mini",
+    connect: Annotated[
+        list[str] | None,
+        typer.Option(
+            help=f"Zenoh endpoint to connect to (default {DEFAULT_ENDPOINT}).", show_default=False
+        ),
+    ] = None,
+    zenoh_config: Annotated[
+        Path | None,
+        typer.Option("--zenoh-config", help="Zenoh JSON5 configuration file.", show_default=False),
+    ] = None,
     duration: Annotated[
-        float | None, typer.Option(min=0.0, help="Stop after S seconds (else on SIGINT/SIGTERM).")
+        float | None,
+        typer.Option(
+            min=0.0, help="Stop after S seconds (else on SIGINT/SIGTERM).", show_default=False
+        ),
     ] = None,
 ) -> None:
-    """Record every message under robots/<id>/** into MCAP (JSON with schemas, for Foxglove)."""
+    """Record every message under robots/<id>/** into MCAP; dms record info FILE describes one.
+
+    JSON with its schemas (for Foxglove) in zstd chunks, with the daemon's seed, settings
+    and files, so that dms sim replay FILE needs no flags. Exit 1 when nothing was recorded.
+    """
+    if ctx.invoked_subcommand is not None:
+        return
     import time
 
     from dms.bus import ZenohClient, make_config
     from dms.kernel.keys import ROBOT_ID_RE
     from sim.recording import McapRecorder, record_until
 
+    if out is None:
+        raise typer.BadParameter(
+            "give the file to write (or: dms record info FILE)", param_hint="--out"
+        )
     if not ROBOT_ID_RE.match(robot_id):
         raise SimError(f"--robot-id: {robot_id!r} does not match [a-z0-9_-]+")
+    endpoints = list(connect or ([] if zenoh_config else [DEFAULT_ENDPOINT]))
+    config = make_config(connect=endpoints, config_file=zenoh_config)  # a bad file: one line
     recorder = McapRecorder(out, robot_id)  # a bad --out fails before the network is touched
+    started = time.monotonic()
     try:
         stop = _stop_on_signals()
-        with ZenohClient(robot_id, make_config(connect=connect or [DEFAULT_ENDPOINT])) as client:
+        with ZenohClient(robot_id, config) as client:
             print(f"dms: recording robots/{robot_id}/** into {out}; Ctrl-C stops", file=sys.stderr)
-            stats = record_until(recorder, client.subscribe_raw, time.time_ns, stop, duration)
+            asked = threading.Event()
+            fetcher = threading.Thread(
+                target=_store_config, args=(client, recorder, stop, asked), daemon=True
+            )
+
+            def subscribe(key_expr: str, handler: Callable[[str, bytes], None]) -> None:
+                client.subscribe_raw(key_expr, handler)
+                fetcher.start()  # asked after subscribing: its answer comes on a live link
+
+            stats = record_until(recorder, subscribe, time.time_ns, stop, duration)
+            asked.set()  # the recording is closed: stop asking
     finally:
         recorder.close()
+    where = ", ".join(endpoints) or f"the endpoints of {zenoh_config}"
+    if stats.messages == 0:
+        out.unlink(missing_ok=True)
+        raise SimError(
+            f"recorded nothing from robots/{robot_id}/** in {time.monotonic() - started:.1f} s"
+            f" (is its daemon running and reachable at {where}?); {out} not kept"
+        )
     by_key = ", ".join(f"{key} {count}" for key, count in sorted(stats.by_key.items()))
-    print(f"dms: {stats.messages} messages recorded ({by_key or 'none'})", file=sys.stderr)
+    stored = "" if stats.configured else "; the daemon's configuration was not stored"
+    print(f"dms: {stats.messages} messages recorded ({by_key}){stored}", file=sys.stderr)
 
 
-__all__ = ["app", "record_command"]
+def _store_config(
+    client: ZenohClient, recorder: McapRecorder, stop: threading.Event, done: threading.Event
+) -> None:
+    """Once the daemon is alive, ask it for ``dms/config`` and store its answer (the seed,
+    settings and files a replay needs); a daemon that does not answer leaves it out."""
+    import time
+
+    from dms.daemon import CONFIG_KEY
+    from dms.kernel.keys import ALIVE_DMS
+
+    while not (stop.is_set() or done.is_set()):
+        if not client.wait_alive(ALIVE_DMS, 0.5):
+            continue
+        try:
+            replies = client.query(CONFIG_KEY, timeout_s=10.0)
+        except Exception:  # the session closed under the query: the recording has ended
+            return
+        for ok, body in replies:
+            if ok and isinstance(body, dict) and recorder.add_config(body, time.time_ns()):
+                files = body.get("files") or []
+                print(
+                    f"dms: stored robot {recorder.robot_id}'s configuration for replay "
+                    f"(seed {body.get('seed')}, {len(files)} files)",
+                    file=sys.stderr,
+                    flush=True,
+                )
+                return
+        return
+
+
+@record_app.command("info")
+def record_info_command(
+    file: Annotated[Path, typer.Argument(help="An MCAP file written by dms record.")],
+    as_json: Annotated[bool, typer.Option("--json", help="Print the description as JSON.")] = False,
+) -> None:
+    """Describe a recording, as ros2 bag info does.
+
+    Its duration, messages per topic, chunks and their compression, and the daemon's
+    configuration stored for replay.
+    """
+    from sim.recording import recording_info
+
+    info = recording_info(file)
+    if as_json:
+        _print_json(info)
+        return
+    typer.echo(_info_text(info))
+
+
+def _info_text(info: dict[str, Any]) -> str:
+    from datetime import UTC, datetime
+
+    def when(ns: int | None) -> str:
+        if ns is None:
+            return "-"
+        return datetime.fromtimestamp(ns / 1e9, UTC).isoformat(timespec="milliseconds")
+
+    start, end = info.get("start_ns"), info.get("end_ns")
+    duration = (end - start) / 1e9 if start is not None and end is not None else 0.0
+    lines = [
+        f"File:          {info['file']}",
+        f"Size:          {_size(info['bytes'])}",
+        f"Duration:      {duration:.3f} s",
+        f"Start:         {when(start)}",
+        f"End:           {when(end)}",
+        f"Messages:      {info['messages']}",
+    ]
+    if info.get("complete"):
+        ratio = info["uncompressed_bytes"] / max(1, info["compressed_bytes"])
+        lines.append(
+            f"Chunks:        {info['chunks']} ({', '.join(info['compression']) or 'none'}; "
+            f"{_size(info['uncompressed_bytes'])} -> {_size(info['compressed_bytes'])}, "
+            f"{ratio:.1f}x)"
+        )
+    else:
+        lines.append(f"Truncated:     {info.get('truncated')}")
+    config = info.get("config")
+    if config is None:
+        lines.append("Configuration: not stored (dms sim replay needs --config and --seed)")
+    else:
+        versions = ", ".join(f"{k} {v}" for k, v in config["versions"].items())
+        lines.append(f"Robot:         {config['robot_id']}")
+        lines.append(f"Seed:          {config['seed'] if config['seed'] is not None else 'none'}")
+        lines.append(f"Versions:      {versions}")
+        files = config["files"]
+        groups: dict[str, int] = {}
+        for name in files:
+            groups[name.split("/", 1)[0]] = groups.get(name.split("/", 1)[0], 0) + 1
+        rules = [name.split("/")[-1] for name in files if name.startswith("rules/")]
+        shown = ", ".join(f"{group} {count}" for group, count in sorted(groups.items()))
+        lines.append(f"Files stored:  {len(files)} ({shown or 'none'})")
+        if rules:
+            lines.append(f"Rules:         {', '.join(rules)}")
+    topics = info["topics"]
+    width = max((len(t["topic"]) for t in topics), default=0)
+    lines.append("Topics:" if topics else "Topics:        none")
+    for topic in topics:
+        schema = topic["schema"] or "-"
+        lines.append(f"  {topic['topic']:<{width}}  {topic['count']:>7}  {schema}")
+    return "\n".join(lines)
+
+
+def _size(count: int) -> str:
+    value = float(count)
+    for unit in ("B", "KiB", "MiB", "GiB"):
+        if value < 1024 or unit == "GiB":
+            return f"{value:.0f} {unit}" if unit == "B" else f"{value:.1f} {unit}"
+        value /= 1024
+    return f"{count} B"
+
+
+__all__ = ["app", "record_app", "record_command"]

@@ -7,16 +7,21 @@ ticks when the recorded daemon ticked (the times of its ``dms/state`` and
 none. The decisions it
 takes are compared, in order, with the recorded ``dms/decision`` messages; each
 stretch where they differ is reported with its time.
+
+The seed, the settings and the rule, behavior and content files are the recorded
+daemon's when the recording holds them (``dms record`` stores them), so a replay needs
+no flags; a seed or settings given to :func:`replay` win.
 """
 
 from __future__ import annotations
 
 import bisect
 import difflib
+import tempfile
 import time
 from dataclasses import dataclass, field
 from datetime import UTC, datetime, timedelta
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any
 
 from pydantic import BaseModel, ValidationError
@@ -24,9 +29,10 @@ from pydantic import BaseModel, ValidationError
 from dms.config import Settings
 from dms.inputs import InputRejected, parse_input
 from dms.kernel import keys
+from dms.kernel.errors import ConfigError
 from dms.kernel.messages import Decision
 from sim.errors import RecordingError
-from sim.recording import Recording, read_recording
+from sim.recording import RecordedConfig, Recording, read_recording
 
 REPLAYED_INPUTS = frozenset(
     {
@@ -134,13 +140,79 @@ def _parse_time(text: str) -> datetime | None:
         return None
 
 
-def replay(path: Path, seed: int = 0, settings: Settings | None = None) -> ReplayReport:
-    """Replay ``path``; see the module docstring."""
+def replay(path: Path, seed: int | None = None, settings: Settings | None = None) -> ReplayReport:
+    """Replay ``path``; see the module docstring. ``seed`` and ``settings`` default to the
+    recorded daemon's (then to 0 and the defaults, for a recording without them)."""
+    recording: Recording = read_recording(path)
+    notes: list[str] = []
+    config = recording.config
+    with tempfile.TemporaryDirectory(prefix="dms-replay-") as folder:
+        if settings is None and config is not None:
+            settings = recorded_settings(config, Path(folder))
+            notes.append(
+                f"the recorded daemon's settings and {len(config.files)} files "
+                f"(dms {config.versions.get('dms', '?')})"
+            )
+        elif settings is None:
+            notes.append("no configuration in the recording: the defaults (--config to give it)")
+        if seed is None:
+            if config is not None and config.seed is not None:
+                seed = config.seed
+                notes.append(f"the recorded seed {seed}")
+            elif settings is not None and settings.seed is not None:
+                seed = settings.seed
+            else:
+                seed = 0
+                if config is not None:
+                    notes.append("the recorded daemon ran without a seed: its draws differ")
+        return _replay(path, recording, seed, settings, notes)
+
+
+def recorded_settings(config: RecordedConfig, folder: Path) -> Settings:
+    """The recorded settings, their files written under ``folder`` and used from there."""
+    data = dict(config.settings)
+    written: dict[str, Path] = {}
+    for name, content in config.files.items():
+        relative = PurePosixPath(name)
+        if relative.is_absolute() or ".." in relative.parts or len(relative.parts) < 2:
+            raise RecordingError(f"a stored file has a name that is not safe: {name!r}")
+        if relative.parts[0] == "content":  # searched first beside the behaviors
+            relative = PurePosixPath("behaviors", *relative.parts)
+        target = folder.joinpath(*relative.parts)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_bytes(content)
+        written[name] = target
+    rules = dict(data.get("rules") or {})
+    rule_files = sorted(
+        (name for name in written if name.startswith("rules/") and name.split("/")[1].isdigit()),
+        key=lambda name: int(name.split("/")[1]),
+    )
+    rules["files"] = [str(written[name]) for name in rule_files]
+    schema = [name for name in written if name.startswith("rules/schema/")]
+    rules["schema_file"] = str(written[schema[0]]) if schema else None
+    data["rules"] = rules
+    if any(name.startswith("behaviors/") for name in written):
+        data["behaviors"] = {"folder": str(folder / "behaviors")}
+    data["db"] = None  # never the recorded store
+    try:
+        return Settings.model_validate(data)
+    except (ValueError, ConfigError) as error:
+        first = str(error).splitlines()
+        raise RecordingError(
+            f"the stored settings are not valid here: {first[0] if first else error}"
+        ) from None
+
+
+def _replay(
+    path: Path,
+    recording: Recording,
+    seed: int,
+    settings: Settings | None,
+    notes: list[str],
+) -> ReplayReport:
     from sim.harness import Simulation
 
     wall = time.perf_counter()
-    recording: Recording = read_recording(path)
-    notes: list[str] = []
     inputs: list[tuple[datetime, str, BaseModel]] = []
     recorded: list[Decision] = []
     tick_times: list[datetime] = []
