@@ -123,14 +123,16 @@ def study_command(
     sessions: Annotated[int, typer.Option(min=1, max=10000, help="Participants.")] = 30,
     minutes: Annotated[float, typer.Option(min=0.5, max=24 * 60, help="Session length.")] = 30.0,
     proactivity: Annotated[
-        str, typer.Option(help="True proactivity of every participant: low, moderate or high.")
+        Literal["low", "moderate", "high"],
+        typer.Option(help="True proactivity of every participant."),
     ] = "moderate",
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
     repeat: Annotated[
         int, typer.Option(min=1, max=100, help="Visits of each participant (adaptation).")
     ] = 1,
     population: Annotated[
-        str, typer.Option(help="paper (adults like the seed's) or personas (the shipped ones).")
+        Literal["paper", "personas"],
+        typer.Option(help="paper (adults like the seed's) or personas (the shipped ones)."),
     ] = "paper",
     config: ConfigOption = None,
     rules: RulesOption = None,
@@ -145,20 +147,17 @@ def study_command(
     """The seed's first experiment with simulated participants; prints its Table 4."""
     from sim.study import run_study, study_settings
 
-    level = _proactivity(proactivity)
-    if population not in ("paper", "personas"):
-        raise SimError(f"--population: {population!r} is not paper or personas")
     settings, raw = _design(config, rules)
     with _progress(sessions * repeat, "sessions") as told:
         result = run_study(
             sessions,
             minutes,
-            level,
+            proactivity,
             seed,
             study_settings(settings, raw),
             told,
             repeat=repeat,
-            population="paper" if population == "paper" else "personas",
+            population=population,
             record_decisions=out is not None,
         )
     if out is not None:
@@ -209,16 +208,6 @@ def compare_command(
         _print_json(to_json(result))
     else:
         typer.echo(table(result))
-
-
-def _proactivity(value: str) -> Literal["low", "moderate", "high"]:
-    if value == "low":
-        return "low"
-    if value == "moderate":
-        return "moderate"
-    if value == "high":
-        return "high"
-    raise SimError(f"--proactivity: {value!r} is not low, moderate or high")
 
 
 @app.command("longterm")
@@ -335,12 +324,15 @@ def robot_command(
 
 @app.command("personas")
 def personas_command() -> None:
-    """List the shipped personas."""
+    """List the shipped personas (a table: name, proactivity, description)."""
+    from memory.cli import print_table
     from sim.persona import load_persona, shipped_personas
 
+    rows = []
     for name in shipped_personas():
         persona = load_persona(name)
-        typer.echo(f"{name:<10} {persona.proactivity:<9} {persona.description}")
+        rows.append([name, persona.proactivity, persona.description])
+    print_table(None, ["name", "proactivity", "description"], rows)
 
 
 record_app = typer.Typer()

@@ -87,7 +87,7 @@ def test_study_prints_table_4(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_study_bad_proactivity(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["sim", "study", "--proactivity", "extreme"]) == 1
+    assert main(["sim", "study", "--proactivity", "extreme"]) == 2  # a choice: usage error
     assert "--proactivity" in capsys.readouterr().err
 
 
