@@ -89,7 +89,7 @@ class Activity:
         if self.finished or self.status is ActivityStatus.PAUSED:
             return self.status
         if self._stop_by is not None and now >= self._stop_by:
-            log.warning("activity %s: cleanup still running at its limit, stopped", self.name)
+            log.info("activity %s: cleanup still running at its limit, stopped", self.name)
             self.cancel(now)
             return self.status
         self.ticks += 1

@@ -36,6 +36,8 @@ from activities.blocks import BLOCKS, Param, type_ok
 from activities.engine import PREEMPTED
 from activities.errors import BehaviorError
 from activities.template import is_single_placeholder
+from dms.kernel.yamlfile import Located, load_located, plain
+from dms.kernel.yamlfile import line_of_key as _line
 
 CONTAINERS = ("state_machine", "sequence", "concurrence", "iterator", "guard", "behavior")
 MACHINES = ("state_machine", "sequence")
@@ -92,59 +94,6 @@ CONTAINER_PARAMS: dict[str, dict[str, Param]] = {
     },
     "behavior": {"name": Param("string", required=True)},
 }
-
-
-# ---------------------------------------------------------------- YAML with lines
-
-
-class _Located(dict[str, Any]):
-    """A mapping read from YAML that remembers the line of itself and of each key."""
-
-    line: int = 0
-    key_lines: dict[str, int]
-
-
-class _Loader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # type: ignore[misc]
-    """libyaml's parser when PyYAML has it: the daemon parses every behavior file on its
-    start path, and the pure-Python parser took 50 ms of it (issue 14)."""
-
-
-def _construct_mapping(loader: _Loader, node: yaml.MappingNode) -> _Located:
-    loader.flatten_mapping(node)
-    out = _Located()
-    out.line = node.start_mark.line + 1
-    out.key_lines = {}
-    for key_node, value_node in node.value:
-        key = loader.construct_object(key_node, deep=True)
-        if not isinstance(key, str):
-            key = str(key).lower() if isinstance(key, bool) else str(key)
-        if key in out:
-            raise yaml.constructor.ConstructorError(
-                None, None, f"duplicate key {key!r}", key_node.start_mark
-            )
-        out[key] = loader.construct_object(value_node, deep=True)
-        out.key_lines[key] = key_node.start_mark.line + 1
-    return out
-
-
-_Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
-
-
-def plain(value: Any) -> Any:
-    """Located mappings as plain dicts, recursively (for saving and comparing)."""
-    if isinstance(value, dict):
-        return {str(k): plain(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [plain(v) for v in value]
-    return value
-
-
-def _line(mapping: Any, key: str | None = None) -> int:
-    if isinstance(mapping, _Located):
-        if key is not None and key in mapping.key_lines:
-            return mapping.key_lines[key]
-        return mapping.line
-    return 0
 
 
 # ---------------------------------------------------------------- the model
@@ -262,14 +211,14 @@ class _Checker:
 def parse_text(text: str, where: str, path: Path | None = None) -> BehaviorSpec:
     """Parse and check one behavior; raise BehaviorError naming file, line and state."""
     try:
-        data = yaml.load(text, Loader=_Loader)
+        data = load_located(text)
     except yaml.YAMLError as error:
         mark = getattr(error, "problem_mark", None)
         line = f":{mark.line + 1}" if mark is not None else ""
         problem = getattr(error, "problem", None) or str(error).splitlines()[0]
         raise BehaviorError(f"{where}{line}: not valid YAML: {problem}") from None
     checker = _Checker(where)
-    if not isinstance(data, _Located):
+    if not isinstance(data, Located):
         raise BehaviorError(f"{where}:1: a behavior file is a mapping with name and states")
     for key in data:
         if key not in TOP_KEYS:
@@ -282,7 +231,7 @@ def parse_text(text: str, where: str, path: Path | None = None) -> BehaviorSpec:
     if description is not None and not isinstance(description, str):
         checker.problem(_line(data, "description"), "", "description must be a string")
     body = {key: data[key] for key in ("outcomes", "initial", "userdata", "states") if key in data}
-    located = _Located(body)
+    located = Located(body)
     located.line, located.key_lines = data.line, data.key_lines
     root = _parse_state(checker, "", "state_machine", located, data.line)
     if root is not None:
@@ -415,7 +364,7 @@ def parse_state_entry(checker: _Checker, path: str, raw: Any, line: int) -> Stat
     spec.present = tuple(present)
     spec.name = path.rsplit("/", 1)[-1]
     raw_transitions = raw.get("transitions")
-    if isinstance(raw_transitions, _Located):
+    if isinstance(raw_transitions, Located):
         spec.transition_lines = dict(raw_transitions.key_lines)
     return spec
 

@@ -1,8 +1,9 @@
 """Loading YAML specs (personas, scenarios) into pydantic models with useful errors.
 
-The YAML is composed once into nodes so that every field keeps the line it came
-from; a validation error is then reported as ``FILE:LINE: field: message``, naming
-the innermost field that has a line.
+The YAML is read once by the loader with line numbers (:mod:`dms.kernel.yamlfile`,
+the same as behavior files'), so that every field keeps the line it came from; a
+validation error is then reported as ``FILE:LINE: field: message``, naming the
+innermost field that has a line.
 """
 
 from __future__ import annotations
@@ -14,25 +15,10 @@ from typing import Any, TypeVar
 import yaml
 from pydantic import BaseModel, ValidationError
 
+from dms.kernel.yamlfile import Path_, lines_by_path, load_located, plain, yaml_error
 from sim.errors import SpecError
 
 Model = TypeVar("Model", bound=BaseModel)
-Path_ = tuple[str | int, ...]
-
-
-def _lines(node: yaml.Node, path: Path_, out: dict[Path_, int]) -> None:
-    """Record the line (1-based) of every mapping key and sequence item under ``node``."""
-    if isinstance(node, yaml.MappingNode):
-        for key, value in node.value:
-            name = key.value if isinstance(key, yaml.ScalarNode) else str(key)
-            child = (*path, name)
-            out[child] = key.start_mark.line + 1
-            _lines(value, child, out)
-    elif isinstance(node, yaml.SequenceNode):
-        for index, item in enumerate(node.value):
-            child = (*path, index)
-            out[child] = item.start_mark.line + 1
-            _lines(item, child, out)
 
 
 def read_yaml(path: Path) -> tuple[Any, dict[Path_, int]]:
@@ -49,18 +35,10 @@ def read_yaml(path: Path) -> tuple[Any, dict[Path_, int]]:
 def parse_yaml(text: str, where: str) -> tuple[Any, dict[Path_, int]]:
     """Like :func:`read_yaml` for text already read; ``where`` names it in errors."""
     try:
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
-        data = yaml.safe_load(text)
-    except yaml.MarkedYAMLError as error:
-        mark = error.problem_mark or error.context_mark
-        line = f":{mark.line + 1}:{mark.column + 1}" if mark is not None else ""
-        raise SpecError(f"{where}{line}: not valid YAML: {error.problem or error}") from None
+        located = load_located(text)
     except yaml.YAMLError as error:
-        raise SpecError(f"{where}: not valid YAML: {error}") from None
-    lines: dict[Path_, int] = {}
-    if node is not None:
-        _lines(node, (), lines)
-    return data, lines
+        raise SpecError(yaml_error(error, where)) from None
+    return plain(located), lines_by_path(located)
 
 
 def line_of(lines: dict[Path_, int], loc: Sequence[str | int]) -> tuple[int | None, str]:
