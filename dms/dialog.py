@@ -17,6 +17,7 @@ from enum import StrEnum
 from typing import Any
 
 from dms.kernel.expression import ExpressionArbiter, Priority
+from dms.kernel.words import digits
 
 SOURCE = "dms"
 """The expression source of the controller's own dialogs."""
@@ -134,15 +135,11 @@ def feedback_dialog(activity: str, now: datetime, timeout_s: float) -> Dialog:
     )
 
 
-_NUMBER_WORDS = {"one": "1", "two": "2", "three": "3", "four": "4", "five": "5"}
-
-
 def feedback_score(answer: str) -> float | None:
     """A 0..1 score from a 1-5 answer (digit or word)."""
-    key = _NUMBER_WORDS.get(answer.strip().lower(), answer.strip())
-    return FEEDBACK_WORDS.get(key)
+    return FEEDBACK_WORDS.get(digits(answer))
 
 
 def normalize_feedback(text: str) -> str:
     """Turn number words into digits so "four" matches the choice "4"."""
-    return " ".join(_NUMBER_WORDS.get(word, word) for word in text.lower().split())
+    return digits(text)
