@@ -43,7 +43,7 @@ def test_after_an_erase_a_retraining_forgets_the_user(store: ProfileStore, db_ur
     # The erase comes from the command line while the daemon holds the database.
     with store.engine.connect() as daemon_reading:
         daemon_reading.execute(text("SELECT count(*) FROM users")).scalar_one()
-        result = CliRunner().invoke(app, ["erase", "fan0", "--db", db_url])
+        result = CliRunner().invoke(app, ["erase", "fan0", "--yes", "--db", db_url])
         assert result.exit_code == 0, result.output
     assert chooser.model.training_size == before  # not learnt again yet
     after = _retrained(chooser).training_size
