@@ -568,31 +568,59 @@ class Agenda:
         return claim
 
     def _poll(self, now_us: int) -> Callable[[], None]:
-        """A job that reads the items added since the last poll (or every item, now and
-        then) and, on a reload, forgets claims long settled."""
+        """A job that reads the items added since the last poll (or, now and then, the
+        cursors of every item: items removed elsewhere go, cursors moved elsewhere are
+        taken) and, on a reload, forgets claims long settled.
+
+        It reads ids and cursors first and whole rows only of the items it does not
+        have as stored, so a poll of an unchanged agenda reads a few numbers."""
 
         def poll() -> None:
             reload = self._reload_at_us is None or now_us >= self._reload_at_us
             try:
                 if reload:
                     self._reload_at_us = now_us + RELOAD_S * US_PER_S
-                    self._load(None)
+                self._sync(full=reload)
+                if reload:
                     with self._io_lock, self._engine.begin() as connection:
                         before = from_us(now_us - CLAIMS_KEEP_S * US_PER_S)
                         connection.execute(delete(ClaimRow).where(ClaimRow.fire_time < before))
-                    return
-                query = select(ItemRow).where(
-                    ItemRow.id > self._high_id - POLL_OVERLAP, ItemRow.next_fire.is_not(None)
-                )
-                with self._io_lock, self._sessions() as session:
-                    rows = list(session.scalars(query))
                 with self._lock:
-                    self._apply_rows(rows, None, drop=False)
                     self._advance(now_us, down=False)
             except SQLAlchemyError as error:
                 log.warning("agenda: cannot read new items: %s", _one_line(error))
 
         return poll
+
+    def _sync(self, full: bool) -> None:
+        """Bring the index in line with the stored cursors: of every item (``full``: the
+        items not stored any more are forgotten), or of the newest ones."""
+        items: Any = ItemRow.__table__
+        query = select(items.c.id, items.c.next_fire).where(items.c.next_fire.is_not(None))
+        if not full:
+            query = query.where(items.c.id > self._high_id - POLL_OVERLAP)
+        with self._io_lock:
+            with self._engine.connect() as connection:
+                cursors = {int(row.id): to_us(row.next_fire) for row in connection.execute(query)}
+            with self._lock:
+                queued = {record.item_id for record in self._queue}
+                entries = self._index.entries
+                wanted = [
+                    item_id
+                    for item_id, cursor in cursors.items()
+                    if item_id not in queued
+                    and ((entry := entries.get(item_id)) is None or entry.cursor_us != cursor)
+                ]
+            rows: list[ItemRow] = []
+            if wanted:
+                with self._sessions() as session:
+                    rows = list(session.scalars(select(ItemRow).where(ItemRow.id.in_(wanted))))
+            with self._lock:  # still under _io_lock: no item is added meanwhile
+                self._apply_rows(rows, None, drop=False)
+                if full:
+                    for item_id in [i for i in self._index.entries if i not in cursors]:
+                        self._index.drop(item_id)
+                    self._forget_claims()
 
     def delivered(self, item: DueItem, now: datetime) -> None:
         """``item`` was started or spoken: log it and schedule its next occurrence.

@@ -244,14 +244,6 @@ class _Stale(StoreUnavailable):
     """Another writer changed the row since this write read it (its version moved)."""
 
 
-class _AlreadyApplied(Exception):
-    """The write's id is in ``applied_writes``: it was applied before."""
-
-    def __init__(self, result: int | None) -> None:
-        super().__init__("already applied")
-        self.result = result
-
-
 class ProfileStore:
     """Profiles and their history in the database at ``url``.
 
@@ -412,8 +404,10 @@ class ProfileStore:
         writer changes the row under it (:class:`_Stale`).
 
         With a ``write_id`` the write is recorded in ``applied_writes`` in the same
-        transaction; a write whose id is there already is not run again: ``again`` answers
-        with what the first run stored (``result`` of its answer).
+        transaction; a write whose id is there already fails on the key when it commits,
+        so it is rolled back whole (a replay costs one wasted transaction, a first run no
+        extra read): ``again`` answers with what the first run stored (``result`` of its
+        answer).
         """
         if write_id is not None and (not isinstance(write_id, str) or not 0 < len(write_id) <= 64):
             raise ProfileError(
@@ -422,10 +416,6 @@ class ProfileStore:
         for attempt in range(MAX_ATTEMPTS):
             try:
                 with self._session() as session:
-                    if write_id is not None:
-                        done = session.get(AppliedWriteRow, write_id)
-                        if done is not None:
-                            raise _AlreadyApplied(done.result)
                     answer = change(session)
                     if write_id is not None:
                         session.add(
@@ -445,11 +435,9 @@ class ProfileStore:
                 # growing pause (at most 50 ms), so that two robots do not collide again.
                 time.sleep(random.uniform(0, min(0.05, 0.001 * 2 ** min(attempt, 6))))
                 continue
-            except _AlreadyApplied as applied:
-                return again(applied.result)
             except _Conflict:
-                # Two runs of one write at once (a writer stuck in flight and its replay):
-                # the other one's id is in now.
+                # The write's id is in applied_writes: it was applied before (a replay),
+                # or by a run of it at the same time (a writer stuck in flight).
                 if write_id is not None:
                     stored = self._applied(write_id)
                     if stored is not None:
