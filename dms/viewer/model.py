@@ -57,6 +57,10 @@ class RobotView:
     agenda: dict[str, Any] | None = None
     thresholds: dict[str, float] = field(default_factory=dict)
     thresholds_source: str = "none"
+    """``state`` (the state carries them), ``config`` (the daemon's ``dms/config``),
+    ``defaults`` (the shipped drives: the daemon told neither) or ``none``."""
+    configured: dict[str, float] = field(default_factory=dict)
+    """The thresholds of the daemon's ``dms/config``, once read."""
     samples: deque[list[Any]] = field(default_factory=deque)
     decisions: deque[dict[str, Any]] = field(default_factory=lambda: deque(maxlen=MAX_DECISIONS))
     errors: deque[dict[str, Any]] = field(default_factory=lambda: deque(maxlen=MAX_ERRORS))
@@ -195,9 +199,10 @@ class LiveModel:
             if name == "dms":
                 if view.alive != alive:
                     view.alive, view.since = alive, self._clock()
-                if alive:  # a (re)started daemon: what it runs and its agenda, afresh
+                if alive:  # a (re)started daemon: what it runs, its settings, its agenda
                     view.asked_for, view.asked_at = None, -math.inf
-                    wanted = ["agenda"]
+                    view.configured = {}
+                    wanted = ["config", "agenda"]
             elif alive:
                 view.tokens.add(name)
             else:
@@ -268,16 +273,29 @@ class LiveModel:
         return sample
 
     def _thresholds(self, view: RobotView, state: dict[str, Any]) -> None:
+        """The thresholds to draw: the state's own, else the daemon's configuration's,
+        else the shipped defaults (for the drives the state names)."""
         motivation = _dict(state.get("motivation")) or {}
+        drives = _numbers(motivation.get("drives"))
         published = _numbers(motivation.get("thresholds"))
         if published:
-            view.thresholds, view.thresholds_source = published, "daemon"
-        elif view.thresholds_source != "daemon":
-            drives = _numbers(motivation.get("drives"))
-            view.thresholds = {
-                name: value for name, value in self._default_thresholds.items() if name in drives
-            }
+            view.thresholds, view.thresholds_source = published, "state"
+        elif view.configured:
+            view.thresholds, view.thresholds_source = dict(view.configured), "config"
+        else:
+            defaults = self._default_thresholds
+            view.thresholds = {name: value for name, value in defaults.items() if name in drives}
             view.thresholds_source = "defaults" if view.thresholds else "none"
+
+    def set_thresholds(self, robot: str, thresholds: Mapping[str, float]) -> None:
+        """The thresholds of the daemon's configuration (``dms/config``)."""
+        with self._lock:
+            view = self._view(robot)
+            if view is None:
+                return
+            view.configured = dict(thresholds)
+            if view.state is not None:
+                self._thresholds(view, view.state)
 
     @staticmethod
     def _wants_structure(

@@ -2,8 +2,9 @@
 thread for the queries it asks for (a query is never made from a Zenoh callback).
 
 Per robot (or ``robots/*`` when none is named): the ``alive/**`` tokens, ``dms/state``,
-``dms/decision`` and ``dms/errors``; ``dms/behavior`` when the activity changes, and
-``agenda/*`` when the user changes and every :data:`AGENDA_EVERY_S` seconds. An agenda
+``dms/decision`` and ``dms/errors``; ``dms/config`` when a daemon comes (for the drives'
+thresholds), ``dms/behavior`` when the activity changes, and ``agenda/*`` when the user
+changes and every :data:`AGENDA_EVERY_S` seconds. An agenda
 that the daemon does not serve (``[privacy] serve_profiles``, or the viewer's role in a
 secured deployment) is shown with the daemon's reason.
 """
@@ -21,9 +22,12 @@ from typing import Any
 from dms.bus import ZenohClient
 from dms.kernel import keys
 from dms.viewer.model import LiveModel, robot_of
+from motivation.config import load_config
 
 log = logging.getLogger(__name__)
 
+CONFIG_KEY = "dms/config"
+"""The daemon's settings, versions and files (the drives' thresholds are read from it)."""
 AGENDA_EVERY_S = 30.0
 QUERY_TIMEOUT_S = 3.0
 
@@ -92,6 +96,8 @@ class BusSource:
             try:
                 if what == "behavior":
                     self._read_behavior(robot)
+                elif what == "config":
+                    self._read_config(robot)
                 elif what == "agenda":
                     self._read_agenda(robot)
                 else:
@@ -114,6 +120,22 @@ class BusSource:
         else:
             why = _reason(replies[0][1]) if replies else "no reply to dms/behavior"
             self.model.set_structure(robot, {"error": why})
+
+    def _read_config(self, robot: str) -> None:
+        """The drives' thresholds from the daemon's settings (``dms/config``), as the
+        motivation package reads them (its defaults under the file's overrides)."""
+        replies = self._query(robot, CONFIG_KEY)
+        body = next((body for ok, body in replies if ok and isinstance(body, dict)), None)
+        settings = body.get("settings") if body is not None else None
+        if not isinstance(settings, dict):
+            return  # an older daemon: the page draws the shipped defaults, and says so
+        try:
+            config = load_config(settings.get("motivation") or {})
+        except ValueError as error:
+            log.warning("dms/config of %s: motivation settings not understood: %s", robot, error)
+            return
+        thresholds = {name: drive.threshold for name, drive in config.active_drives.items()}
+        self.model.set_thresholds(robot, thresholds)
 
     def _read_agenda(self, robot: str) -> None:
         self._agenda_read[robot] = time.monotonic()

@@ -226,7 +226,7 @@ function renderInputs(v) {
 // bottom of one state to the top of the next, and one that goes back up in a lane on its
 // right. Outcomes of a state machine that leave it are pills at its bottom.
 
-const BOX_H = 26, GAP_X = 18, GAP_Y = 30, PAD = 10, HEAD = 22, PILL_H = 16, LANE = 34, MAX_H = 620;
+const BOX_H = 26, GAP_X = 18, GAP_Y = 30, PAD = 10, HEAD = 22, PILL_H = 16, LANE = 34, MAX_H = 720;
 const measurer = document.createElement("canvas").getContext("2d");
 
 function textWidth(text, size) {
@@ -430,8 +430,8 @@ function renderCharts(v, rebuild) {
                           v.samples.map((s) => (typeof s[3] === "number" ? s[3] : null))];
   const driveKey = "d:" + drives.join(",") + "|t:" + thresholds.join(",");
   const motivationKey = "m:" + motivations.join(",");
-  const note = v.thresholds_source === "defaults" ? "dashed: thresholds (the shipped defaults: this daemon does not publish its own)"
-             : v.thresholds_source === "daemon" ? "dashed: thresholds" : "";
+  const note = { state: "dashed: thresholds", config: "dashed: thresholds (the daemon's configuration)",
+                 defaults: "dashed: thresholds (the shipped defaults: the daemon did not say its own)" }[v.thresholds_source] || "";
   $("thresholds-note").textContent = note;
   charts.drives = chart(charts.drives, $("chart-drives"), driveKey, rebuild, driveData, () => [
     {},

@@ -1,0 +1,285 @@
+"""``dms view`` as a real process beside a real daemon, on 127.0.0.1.
+
+The first test reads the viewer's event stream as a script would; the second drives the
+page in Debian's Chromium with Playwright and saves docs/viewer.png. Every wait is for an
+event, a message or a page change, with a deadline.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import queue
+import re
+import signal
+import subprocess
+import sys
+import threading
+import urllib.request
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tests.integration.harness import READY_TIMEOUT_S, Collector, put, running_daemon
+
+pytestmark = pytest.mark.integration
+
+CHROMIUM = Path("/usr/bin/chromium")
+SCREENSHOT = Path(__file__).resolve().parents[2] / "docs" / "viewer.png"
+QUIZ = {"action": "start", "activity": "quiz", "by": "test"}
+
+
+@contextmanager
+def running_viewer(port: int, *extra: str) -> Iterator[str]:
+    """``dms view --connect`` the daemon on a free HTTP port; yields the page's URL once the
+    viewer says it serves. Stopped with SIGINT, it must exit 0."""
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "dms.cli",
+            "view",
+            "--connect",
+            f"tcp/127.0.0.1:{port}",
+            "--port",
+            "0",
+            *extra,
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=dict(os.environ, PYTHONUNBUFFERED="1"),
+    )
+    lines: queue.Queue[str | None] = queue.Queue()
+    said: list[str] = []
+
+    def drain() -> None:
+        assert proc.stderr is not None
+        for line in proc.stderr:
+            said.append(line)
+            lines.put(line)
+        lines.put(None)
+
+    threading.Thread(target=drain, daemon=True).start()
+    try:
+        url = _served_url(lines, said)
+        yield url
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(20) == 0, "".join(said)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(10)
+
+
+def _served_url(lines: queue.Queue[str | None], said: list[str]) -> str:
+    while True:
+        try:
+            line = lines.get(timeout=READY_TIMEOUT_S)
+        except queue.Empty:
+            raise AssertionError(f"the viewer never served: {''.join(said)}") from None
+        if line is None:
+            raise AssertionError(f"the viewer stopped: {''.join(said)}")
+        found = re.search(r"http://\S+/", line)
+        if line.startswith("dms: viewer on ") and found:
+            return found.group(0)
+
+
+class EventStream:
+    """The viewer's ``/events`` read as server-sent events, in a thread; every event kept."""
+
+    def __init__(self, url: str) -> None:
+        self.events: list[tuple[str, Any]] = []
+        self._cond = threading.Condition()
+        self._response = urllib.request.urlopen(url + "events", timeout=READY_TIMEOUT_S)
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self) -> None:
+        name, data = "message", []
+        try:
+            for raw in self._response:
+                line = raw.decode().rstrip("\n")
+                if line.startswith("event: "):
+                    name = line[7:]
+                elif line.startswith("data: "):
+                    data.append(line[6:])
+                elif not line and data:
+                    with self._cond:
+                        self.events.append((name, json.loads("\n".join(data))))
+                        self._cond.notify_all()
+                    name, data = "message", []
+        except (OSError, ValueError, AttributeError):  # closed under the reader by close()
+            return
+
+    def wait_for(self, name: str, predicate: Callable[[Any], bool], timeout: float = 10.0) -> Any:
+        """The first ``name`` event so far, or to come, whose data satisfies ``predicate``."""
+        found: list[Any] = []
+
+        def ready() -> bool:
+            found[:] = [d for n, d in self.events if n == name and predicate(d)][:1]
+            return bool(found)
+
+        with self._cond:
+            if not self._cond.wait_for(ready, timeout):
+                seen = [n for n, _ in self.events[-10:]]
+                raise AssertionError(f"no matching {name} event within {timeout}s; last {seen}")
+        return found[0]
+
+    def close(self) -> None:
+        self._response.close()
+
+
+def _activity(state: dict[str, Any]) -> str | None:
+    return (state.get("activity") or {}).get("name")
+
+
+def test_the_viewer_streams_state_structure_and_decisions(tmp_path: Path) -> None:
+    with running_daemon(tmp_path) as (daemon, session), running_viewer(daemon.port) as url:
+        page = urllib.request.urlopen(url, timeout=10).read().decode()
+        assert "static/uPlot.iife.min.js" in page and "static/viewer.js" in page
+        for asset in ("uPlot.iife.min.js", "uPlot.min.css", "viewer.js", "viewer.css"):
+            with urllib.request.urlopen(f"{url}static/{asset}", timeout=10) as response:
+                assert response.status == 200 and response.read()
+
+        stream = EventStream(url)
+        try:
+            snapshot = stream.wait_for("snapshot", lambda _s: True)
+            assert snapshot["history_s"] == 3600.0
+            if not snapshot["robots"].get("mini", {}).get("alive"):
+                stream.wait_for("robot", lambda r: r["robot"] == "mini" and r["alive"])
+            put(session, "request", QUIZ)
+            decision = stream.wait_for("decision", lambda d: d["decision"]["activity"] == "quiz")
+            assert decision["decision"]["action"] == "start"
+            state = stream.wait_for("state", lambda s: _activity(s["state"]) == "quiz")
+            assert state["robot"] == "mini"
+            # The drives' thresholds, from the daemon's dms/config (the shipped ones here).
+            drawn = stream.wait_for("state", lambda s: s["thresholds_source"] == "config")
+            assert drawn["thresholds"] == {"rest": 60.0, "social": 60.0, "play": 50.0}
+            structure = stream.wait_for(
+                "structure", lambda s: (s["structure"] or {}).get("activity") == "quiz"
+            )
+            root = structure["structure"]["structure"]["root"]
+            assert root["name"] == "quiz" and root["initial"] == "INTRO"
+            put(session, "perception/touch", {"part": "knee", "kind": "tap"})
+            error = stream.wait_for("report", lambda e: e["error"]["key"] == "perception/touch")
+            assert "knee" in error["error"]["error"] or "part" in error["error"]["error"]
+        finally:
+            stream.close()
+
+        with urllib.request.urlopen(url + "api/snapshot", timeout=10) as response:
+            mini = json.loads(response.read())["robots"]["mini"]
+        assert mini["alive"] and _activity(mini["state"]) == "quiz"
+        assert any(d["activity"] == "quiz" for d in mini["decisions"])
+        assert mini["samples"] and set(mini["samples"][-1][1]) == set(mini["thresholds"])
+        agenda = mini["agenda"]
+        assert agenda is not None and "serve_profiles" in agenda["error"]  # not served by default
+
+
+def _browser_missing() -> str | None:
+    if not CHROMIUM.exists():
+        return f"no Chromium at {CHROMIUM} (apt-get install chromium)"
+    try:
+        import playwright.sync_api  # noqa: F401
+    except ImportError:
+        return "the playwright package is not installed (pip install -e '.[dev]')"
+    return None
+
+
+@pytest.mark.skipif(_browser_missing() is not None, reason=str(_browser_missing()))
+def test_the_page_shows_the_activity_and_follows_a_request_in_chromium(tmp_path: Path) -> None:
+    from playwright.sync_api import expect, sync_playwright
+
+    with (
+        running_daemon(tmp_path) as (daemon, session),
+        running_viewer(daemon.port) as url,
+        sync_playwright() as playwright,
+    ):
+        states = Collector(session, "robots/mini/dms/state")
+        first = states.wait_for(lambda s: s["activity"] is not None)
+        browser = playwright.chromium.launch(
+            executable_path=str(CHROMIUM), args=["--no-sandbox", "--disable-dev-shm-usage"]
+        )
+        try:
+            page = browser.new_page(viewport={"width": 1400, "height": 1000})
+            page.goto(url)
+            expect(page.locator("#link")).to_have_text("live", timeout=20_000)
+            expect(page.locator("button.robot.alive[data-robot=mini]")).to_be_visible()
+
+            # The running activity, and its active state highlighted in the drawing.
+            running = first["activity"]
+            expect(page.locator("#activity-name")).to_have_text(running["name"], timeout=10_000)
+            expect(page.locator("#activity-state")).to_have_text(running["state"])
+            active = page.locator("#machine g.state.active")
+            expect(active).to_have_count(1, timeout=10_000)
+            expect(active).to_have_attribute("data-path", running["state"])
+
+            # A user arrives; an app's request: the page follows within 2 s.
+            put(session, "perception/user", {"present": True, "user_id": "ann", "ready": True})
+            expect(page.locator("#user")).to_have_text("ann (ready)", timeout=10_000)
+            put(session, "request", QUIZ)
+            expect(page.locator("#activity-name")).to_have_text("quiz", timeout=2_000)
+            started = page.locator("#decisions li[data-action=start][data-activity=quiz]")
+            expect(started).to_have_count(1)
+
+            # Inside the quiz: a nested state is highlighted, with the states around it.
+            asking = states.wait_for(
+                lambda s: "/ASK" in ((s["activity"] or {}).get("state") or ""), timeout=60.0
+            )
+            path = asking["activity"]["state"]
+            expect(page.locator("#machine g.state.active")).to_have_attribute(
+                "data-path", path, timeout=5_000
+            )
+            for outer in ("GAME", "GAME/ROUNDS", "GAME/ROUNDS/ROUND"):
+                assert page.locator(f'#machine g.state.on-path[data-path="{outer}"]').count() == 1
+
+            put(session, "perception/touch", {"part": "knee", "kind": "tap"})
+            expect(page.locator("#errors li").first).to_contain_text("perception/touch")
+            expect(page.locator("#chart-drives canvas").first).to_be_visible()
+            expect(page.locator("#link")).to_have_text("live")  # the stream never broke
+            page.screenshot(path=str(SCREENSHOT), full_page=True)
+        finally:
+            browser.close()
+    assert SCREENSHOT.stat().st_size > 10_000
+
+
+def test_the_viewer_refuses_bad_input_in_one_line(tmp_path: Path) -> None:
+    dms = [sys.executable, "-m", "dms.cli", "view"]
+    cases = [
+        ([*dms, "--robot", "Not/Valid"], "--robot"),
+        ([*dms, "--connect", "tcp/127.0.0.1:9", "--port", "0"], "cannot open the Zenoh session"),
+        ([*dms, "--zenoh-config", str(tmp_path / "missing.json5")], "--zenoh-config"),
+        ([*dms, "--port", "70000"], "--port"),
+    ]
+    for argv, expected in cases:
+        done = subprocess.run(argv, capture_output=True, text=True, timeout=60)
+        assert done.returncode != 0, argv
+        lines = done.stderr.strip().splitlines()
+        assert expected in done.stderr, (argv, done.stderr)
+        assert "Traceback" not in done.stderr and len([ln for ln in lines if ln.strip()]) <= 8
+
+
+def test_a_port_in_use_is_one_line(tmp_path: Path) -> None:
+    with running_daemon(tmp_path) as (daemon, _session), running_viewer(daemon.port) as url:
+        port = url.rsplit(":", 1)[1].strip("/")
+        done = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "dms.cli",
+                "view",
+                "--connect",
+                f"tcp/127.0.0.1:{daemon.port}",
+                "--port",
+                port,
+            ],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+    assert done.returncode == 1
+    assert done.stderr.strip().splitlines() == [
+        line for line in done.stderr.strip().splitlines() if line.startswith("dms: cannot serve")
+    ]
