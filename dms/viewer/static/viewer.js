@@ -453,7 +453,7 @@ function chart(existing, host, key, rebuild, data, series, title, range) {
     title, width: Math.max(300, host.clientWidth || 600), height: 220,
     scales: { x: { time: true }, y: range ? { range: () => range } : { auto: true } },
     series: series(),
-    axes: [{}, { size: 44 }],
+    axes: [{ space: 70, values: (_u, ticks) => ticks.map((t) => clock(t)) }, { size: 44 }],
     legend: { live: false },
   };
   const made = new uPlot(opts, data, host);
