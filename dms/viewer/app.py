@@ -78,7 +78,10 @@ def create_app(model: LiveModel) -> Starlette:
                         continue
                     if event is None:
                         return
-                    yield sse(*event)
+                    try:
+                        yield sse(*event)
+                    except ValueError:  # not plain JSON (the source drops such payloads)
+                        continue
             finally:
                 model.detach(listener)
 

@@ -67,9 +67,9 @@ class BusSource:
             if robot is None:
                 return
             try:
-                payload = json.loads(raw)
-            except ValueError:
-                return  # not a daemon's: the daemon publishes JSON only
+                payload = json.loads(raw, parse_constant=_not_json)
+            except (ValueError, RecursionError):
+                return  # not a daemon's: the daemon publishes plain JSON only
             handler(robot, payload)
 
         return on_sample
@@ -156,6 +156,11 @@ class BusSource:
             return self.client.query_absolute(keys.absolute(robot, key), timeout_s=QUERY_TIMEOUT_S)
         except ValueError:
             return [(False, {"error": "the reply is not JSON"})]
+
+
+def _not_json(constant: str) -> Any:
+    """``NaN`` and ``Infinity`` are Python's, not JSON's: such a payload is dropped."""
+    raise ValueError(f"{constant} is not JSON")
 
 
 def _reason(body: Any) -> str:

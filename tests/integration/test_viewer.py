@@ -23,9 +23,9 @@ from typing import Any
 
 import pytest
 
-from tests.integration.harness import READY_TIMEOUT_S, Collector, put, running_daemon
-
-pytestmark = pytest.mark.integration
+from dms.viewer.model import LiveModel
+from dms.viewer.source import BusSource
+from tests.integration.harness import READY_TIMEOUT_S, Collector, put, query, running_daemon
 
 CHROMIUM = Path("/usr/bin/chromium")
 SCREENSHOT = Path(__file__).resolve().parents[2] / "docs" / "viewer.png"
@@ -136,6 +136,7 @@ def _activity(state: dict[str, Any]) -> str | None:
     return (state.get("activity") or {}).get("name")
 
 
+@pytest.mark.integration
 def test_the_viewer_streams_state_structure_and_decisions(tmp_path: Path) -> None:
     with running_daemon(tmp_path) as (daemon, session), running_viewer(daemon.port) as url:
         page = urllib.request.urlopen(url, timeout=10).read().decode()
@@ -188,6 +189,7 @@ def _browser_missing() -> str | None:
     return None
 
 
+@pytest.mark.integration
 @pytest.mark.skipif(_browser_missing() is not None, reason=str(_browser_missing()))
 def test_the_page_shows_the_activity_and_follows_a_request_in_chromium(tmp_path: Path) -> None:
     from playwright.sync_api import expect, sync_playwright
@@ -235,8 +237,11 @@ def test_the_page_shows_the_activity_and_follows_a_request_in_chromium(tmp_path:
             for outer in ("GAME", "GAME/ROUNDS", "GAME/ROUNDS/ROUND"):
                 assert page.locator(f'#machine g.state.on-path[data-path="{outer}"]').count() == 1
 
-            put(session, "perception/touch", {"part": "knee", "kind": "tap"})
-            expect(page.locator("#errors li").first).to_contain_text("perception/touch")
+            # A rejected input's error quotes it: shown as text, never as HTML.
+            hostile = "<img src=x onerror=document.title='pwned'>"
+            put(session, "request", {"action": "start", "activity": hostile})
+            expect(page.locator("#errors li").first).to_contain_text(hostile)
+            assert page.locator("#errors img").count() == 0 and page.title() == "dms viewer"
             expect(page.locator("#chart-drives canvas").first).to_be_visible()
             expect(page.locator("#link")).to_have_text("live")  # the stream never broke
             page.screenshot(path=str(SCREENSHOT), full_page=True)
@@ -245,6 +250,7 @@ def test_the_page_shows_the_activity_and_follows_a_request_in_chromium(tmp_path:
     assert SCREENSHOT.stat().st_size > 10_000
 
 
+@pytest.mark.integration
 def test_the_viewer_refuses_bad_input_in_one_line(tmp_path: Path) -> None:
     dms = [sys.executable, "-m", "dms.cli", "view"]
     cases = [
@@ -261,6 +267,7 @@ def test_the_viewer_refuses_bad_input_in_one_line(tmp_path: Path) -> None:
         assert "Traceback" not in done.stderr and len([ln for ln in lines if ln.strip()]) <= 8
 
 
+@pytest.mark.integration
 def test_a_port_in_use_is_one_line(tmp_path: Path) -> None:
     with running_daemon(tmp_path) as (daemon, _session), running_viewer(daemon.port) as url:
         port = url.rsplit(":", 1)[1].strip("/")
@@ -283,3 +290,110 @@ def test_a_port_in_use_is_one_line(tmp_path: Path) -> None:
     assert done.stderr.strip().splitlines() == [
         line for line in done.stderr.strip().splitlines() if line.startswith("dms: cannot serve")
     ]
+
+
+@pytest.mark.integration
+def test_the_agenda_shows_when_the_daemon_serves_it(tmp_path: Path) -> None:
+    serve = "[privacy]\nserve_profiles = true\n"
+    with running_daemon(tmp_path, serve) as (daemon, session):
+        decisions = Collector(session, "robots/mini/dms/decision")
+        put(session, "perception/user", {"present": True, "user_id": "ann", "ready": True})
+        decisions.wait_for(lambda d: d["reason"] == "user_arrived")
+        item = {"op": "add", "kind": "reminder", "text": "The doctor at five"}
+        replies = query(session, "agenda/ann", {**item, "at": "2099-01-01T17:00:00", "tz": "UTC"})
+        assert replies and replies[0][0], replies
+        with running_viewer(daemon.port) as url:
+            stream = EventStream(url)
+            try:
+                first = stream.wait_for("snapshot", lambda _s: True)
+                agenda = (first["robots"].get("mini") or {}).get("agenda")
+                if agenda is None:
+                    agenda = stream.wait_for("agenda", lambda _a: True)["agenda"]
+            finally:
+                stream.close()
+    assert [i["text"] for i in agenda["items"]] == ["The doctor at five"], agenda
+    assert agenda["items"][0]["user_id"] == "ann"
+
+
+# ---------------------------------------------------------------------- the model alone
+
+
+def _state(t: str, activity: str | None = "wait", path: str = "IDLE", **extra: Any) -> Any:
+    return {
+        "robot": "mini",
+        "tick": 1,
+        "time": t,
+        "mode": "motivation",
+        "user": None,
+        "activity": (
+            {"name": activity, "manager": "relax", "status": "running", "state": path}
+            if activity
+            else None
+        ),
+        "suspended": None,
+        "motivation": {
+            "dominant": None,
+            "drives": {"rest": 20.0, "play": 30.0},
+            "motivations": {"rest": 0.0, "play": 0.0},
+            "wellbeing": 80.0,
+        },
+        "inputs": {},
+        **extra,
+    }
+
+
+def test_the_model_keeps_one_point_a_second_over_an_hour() -> None:
+    model = LiveModel(default_thresholds={"rest": 60.0, "play": 50.0, "social": 60.0})
+    events: list[tuple[str, Any]] = []
+    model.attach(lambda name, data: events.append((name, data)))
+    for second in range(3700):
+        for half in ("000", "500"):
+            stamp = (
+                f"2026-11-22T{10 + second // 3600:02d}:{second // 60 % 60:02d}:{second % 60:02d}"
+            )
+            model.on_state("mini", _state(f"{stamp}.{half}Z"))
+    view = model.snapshot()["robots"]["mini"]
+    assert len(view["samples"]) == 3601  # one a second, the last hour (both ends)
+    assert view["samples"][-1][0] - view["samples"][0][0] == 3600.0
+    assert view["thresholds"] == {"rest": 60.0, "play": 50.0}  # the drives the state names
+    assert view["thresholds_source"] == "defaults"
+    sampled = [d["sample"] for n, d in events if n == "state" and d["sample"] is not None]
+    assert len(sampled) == 3700
+
+
+def test_the_model_asks_for_the_structure_when_the_activity_changes() -> None:
+    model = LiveModel()
+    asked: list[tuple[str, str]] = []
+    model.need = lambda robot, what: asked.append((robot, what))
+    model.on_state("mini", _state("2026-11-22T10:00:00.000Z"))
+    assert asked == [("mini", "behavior")]
+    model.on_state("mini", _state("2026-11-22T10:00:00.500Z"))
+    assert asked == [("mini", "behavior")], "asked once, not every tick"
+    root = {"name": "wait", "states": [{"name": "IDLE"}], "initial": "IDLE"}
+    model.set_structure("mini", {"activity": "wait", "structure": {"root": root}})
+    model.on_state("mini", _state("2026-11-22T10:00:01.000Z"))
+    model.on_state("mini", _state("2026-11-22T10:00:01.500Z", "quiz", "INTRO"))
+    assert asked[-1] == ("mini", "behavior") and len(asked) == 2
+    model.on_state("mini", _state("2026-11-22T10:00:02.000Z", None))
+    assert model.snapshot()["robots"]["mini"]["structure"] is None
+
+
+def test_the_model_reads_what_daemons_publish_loosely() -> None:
+    model = LiveModel(robots=["mini"])
+    state = BusSource._json(model.on_state)
+    state("robots/mini/dms/state", b'["not", "an", "object"]')
+    state("robots/mini/dms/state", b"not JSON")
+    state("robots/mini/dms/state", b'{"motivation": {"drives": {"rest": NaN}}}')
+    state("robots/other/dms/state", json.dumps(_state("2026-11-22T10:00:00.000Z")).encode())
+    model.on_decision("mini", "nonsense")
+    model.on_state("mini", _state("bad time", motivation={"drives": {"rest": "high"}}))
+    model.on_token("robots/mini/alive/dms", True)
+    model.on_token("robots/mini/alive/perception/user", True)
+    model.on_token("robots/Bad!/alive/dms", True)
+    snapshot = model.snapshot()
+    assert list(snapshot["robots"]) == ["mini"]  # only the robot watched
+    view = snapshot["robots"]["mini"]
+    assert view["alive"] and view["tokens"] == ["perception/user"]
+    assert view["samples"] == [] and view["decisions"] == []
+    assert view["state"]["time"] == "bad time"  # shown as it came, charted nowhere
+    json.dumps(snapshot, allow_nan=False)  # what the page gets is plain JSON
