@@ -5,10 +5,14 @@ entertainment activities, to predict a new user's ranking: ranking by pairwise
 comparison (one logistic regression per pair of activities, which also learns from
 partial rankings; the predicted ranking sorts activities by their summed
 probabilities of winning). With no usable features the ranking is random, as in the
-paper. :class:`ActivityChooser` blends the prediction with the user's own scores
-(feedback, completions, cancellations) and samples its choice (Thompson sampling),
-which tries activities it knows little about and settles on favorites as evidence
-comes in.
+paper. :class:`ActivityChooser` holds, per activity, a belief about how much the user
+likes it (a distribution over 0..1 on a grid): the prediction is its prior, and the
+user's own evidence updates it, each kind for what it says. A rating (the feedback
+question) is the liking plus noise; a completion says only that the user did not stop
+it, a cancellation that they probably disliked it (neither says how much more), so an
+activity completed often but rated low stays low. The ranking is by expected liking;
+the choice samples one liking from each belief (Thompson sampling), which tries
+activities it knows little about and settles on favorites as evidence comes in.
 
 Only numpy is imported here: the pairwise models are L2-regularized logistic
 regressions (scikit-learn's ``LogisticRegression(C=1.0)`` objective) solved by Newton's
@@ -33,7 +37,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from dms.kernel.activity_names import ENTERTAINMENT_ACTIVITIES
-from memory.profile import Profile
+from memory.profile import ActivityScore, Profile
 from memory.seed_data import FEATURE_COLUMNS, SEED_CSV
 
 if TYPE_CHECKING:
@@ -235,10 +239,57 @@ def _seed_model() -> PreferenceModel:
 
 
 PRIOR_STRENGTH = 2.0
-"""How many observations the prediction is worth against the user's own evidence."""
+"""How many observations the prediction is worth against the user's own evidence (the
+concentration of its Beta prior on the user's liking)."""
 
 NOVELTY_PROBABILITY = 0.15
 """Chance to pick an activity the user has never done, while there is one."""
+
+GRID: Vector = np.linspace(0.0125, 0.9875, 40)
+"""The liking values (0..1) a belief is held on: the midpoints of 40 equal bins."""
+FEEDBACK_SD = 0.15
+"""Spread of a rating around the user's liking (a 1-5 answer is a noisy, rounded
+liking: 0.25 apart)."""
+STOP_AT = 0.4
+"""Liking under which a user tends to stop an activity (the middle of the step)."""
+STOP_WIDTH = 0.1
+"""How gradual that step is (logistic scale, in liking)."""
+STOP_SLIP = 0.1
+"""Chance that a stop or a completion says nothing of the liking (a call, a mood)."""
+
+
+def _stop_chance() -> Vector:
+    """P(the user stops the activity | liking) on :data:`GRID`."""
+    step = 1.0 / (1.0 + np.exp(-(STOP_AT - GRID) / STOP_WIDTH))
+    result: Vector = STOP_SLIP + (1.0 - 2.0 * STOP_SLIP) * step
+    return result
+
+
+_LOG_STOP: Vector = np.log(_stop_chance())
+_LOG_FINISH: Vector = np.log(1.0 - _stop_chance())
+
+
+def posterior(prior_mean: float, score: ActivityScore | None) -> Vector:
+    """The belief about one activity's liking, as probabilities over :data:`GRID`.
+
+    The prior is a Beta of mean ``prior_mean`` worth :data:`PRIOR_STRENGTH`
+    observations. Each rating (feedback, 0..1) is the liking plus noise of
+    :data:`FEEDBACK_SD`; each completion and each cancellation is a draw of the
+    stop-or-finish step (:data:`STOP_AT`): a completion says "not disliked", a
+    cancellation "probably disliked", and neither says how much more.
+    """
+    m = min(0.95, max(0.05, prior_mean))
+    log = (PRIOR_STRENGTH * m - 1.0) * np.log(GRID) + (PRIOR_STRENGTH * (1 - m) - 1.0) * np.log(
+        1.0 - GRID
+    )
+    if score is not None:
+        if score.feedback_count:
+            n, total = score.feedback_count, score.feedback_sum
+            log = log - (n * GRID * GRID - 2.0 * total * GRID) / (2.0 * FEEDBACK_SD**2)
+        log = log + score.completions * _LOG_FINISH + score.cancellations * _LOG_STOP
+    weights = np.exp(log - float(np.max(log)))
+    result: Vector = weights / float(np.sum(weights))
+    return result
 
 
 RETRAIN_EVERY_S = 600.0
@@ -320,39 +371,52 @@ class ActivityChooser:
             training.join(timeout)
         return training is None or not training.is_alive()
 
+    def posteriors(self, profile: Profile) -> dict[str, Vector]:
+        """Per activity, the belief about the user's liking over :data:`GRID`: the
+        prediction from features as the prior, updated with the user's own evidence."""
+        prior = self.model.win_scores(profile.features()) or dict.fromkeys(ACTIVITIES, 0.5)
+        return {name: posterior(prior[name], profile.scores.get(name)) for name in ACTIVITIES}
+
     def beliefs(self, profile: Profile) -> dict[str, tuple[float, float]]:
-        """Per activity, Beta(alpha, beta) of how much the user likes it: the prediction
-        as a prior worth :data:`PRIOR_STRENGTH` observations plus the user's evidence."""
+        """Per activity, Beta(alpha, beta) with the mean and spread of the belief about how
+        much the user likes it (:meth:`posteriors`): alpha / (alpha + beta) is the
+        expected liking. Without evidence it is the prior itself."""
         prior = self.model.win_scores(profile.features()) or dict.fromkeys(ACTIVITIES, 0.5)
         out = {}
         for name in ACTIVITIES:
             score = profile.scores.get(name)
-            evidence = score.evidence if score else 0.0
-            liked = score.liking_sum if score else 0.0
-            p = min(0.95, max(0.05, prior[name]))
-            out[name] = (PRIOR_STRENGTH * p + liked, PRIOR_STRENGTH * (1 - p) + evidence - liked)
+            if score is None or not score.evidence:
+                m = min(0.95, max(0.05, prior[name]))
+                out[name] = (PRIOR_STRENGTH * m, PRIOR_STRENGTH * (1.0 - m))
+                continue
+            belief = posterior(prior[name], score)
+            mean = float(belief @ GRID)
+            spread = max(float(belief @ (GRID - mean) ** 2), 1e-6)
+            size = max(mean * (1.0 - mean) / spread - 1.0, 1e-3)
+            out[name] = (mean * size, (1.0 - mean) * size)
         return out
 
     def ranking(self, profile: Profile, rng: random.Random) -> list[str]:
         """The blended ranking (expected liking), best first; ties at random."""
-        beliefs = self.beliefs(profile)
+        means = {name: a / (a + b) for name, (a, b) in self.beliefs(profile).items()}
         names = list(ACTIVITIES)
         rng.shuffle(names)
-        return sorted(names, key=lambda name: -beliefs[name][0] / sum(beliefs[name]))
+        return sorted(names, key=lambda name: -means[name])
 
     def choose(self, profile: Profile, rng: random.Random, exclude: Collection[str] = ()) -> str:
         """One activity not in ``exclude``.
 
         With probability :data:`NOVELTY_PROBABILITY` one the user never did; otherwise
-        the best of one draw from each belief (Thompson sampling), so little-known
-        activities still get tried and favorites win as evidence grows.
+        the best of one draw from each belief (Thompson sampling, from the Beta of the
+        belief's mean and spread), so little-known activities still get tried and
+        favorites win as evidence grows.
         """
         # ``profile`` is the controller's cached one, kept current by the store's writer:
         # the tick never reads the database here.
-        beliefs = self.beliefs(profile)
         names = [name for name in ACTIVITIES if name not in exclude] or list(ACTIVITIES)
         untried = [name for name in names if name not in profile.scores]
         if untried and rng.random() < NOVELTY_PROBABILITY:
             return rng.choice(untried)
+        beliefs = self.beliefs(profile)
         draws = {name: rng.betavariate(*beliefs[name]) for name in names}
         return max(names, key=lambda name: draws[name])

@@ -114,8 +114,7 @@ def test_the_chooser_learns_a_users_taste_from_feedback(store: ProfileStore) -> 
     # Favorites win as evidence grows; the least liked is hardly ever chosen late on.
     assert late[truth[0]] + late[truth[1]] >= 15
     assert late[truth[-1]] <= 3
-    # Early on it explored: it tried several activities.
-    assert len(set(picks[:20])) >= 4
+    # (that it explores early on: test_preferences_evidence.py, over many users)
 
 
 def test_cancellations_push_an_activity_down_and_exclude_is_respected(store: ProfileStore) -> None:
