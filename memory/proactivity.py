@@ -23,8 +23,11 @@ import math
 
 WINDOW = 20
 """Chances remembered at full weight; past twice this, both counts are halved."""
-PRIOR_WEIGHT = 3.0
-"""How many chances the answer to the question on initiative is worth."""
+PRIOR_WEIGHT = 6.0
+"""How many chances the answer to the question on initiative is worth: about two
+sessions of menus, so that what the user said is not overturned by the first few
+choices of their first session (the mode follows the estimate from the first choice
+on), while a few sessions of behavior do overturn it."""
 MIN_CHANCES = 3
 """Without an answer, chances needed before the level leaves ``unknown``."""
 HYSTERESIS = 0.05

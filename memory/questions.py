@@ -3,7 +3,9 @@
 Each :class:`Question` names the field its answer fills; :meth:`QuestionBank.parse`
 turns a spoken or tapped answer into values for that field (None when it did not
 understand), and :meth:`QuestionBank.next_question` picks one whose field is still
-empty, the fields that help the preference prediction first.
+empty: the name and the question on initiative first (so that a new user's first
+choice already follows their answer), then the fields that help the preference
+prediction.
 """
 
 from __future__ import annotations
@@ -202,7 +204,10 @@ class QuestionBank:
     @classmethod
     @cache
     def default(cls) -> QuestionBank:
-        """The built-in bank (features for the predictor first, then preferences)."""
+        """The built-in bank: the name, then the question on initiative (it seeds the
+        proactivity estimate, which sets the mode of the user's very first choice: the
+        seed's step 6 reads it before every choice), then the features the preference
+        predictor uses, then the rest."""
 
         def entry(
             qid: str,
@@ -217,39 +222,39 @@ class QuestionBank:
         return cls(
             [
                 entry("name", "What is your name?", "name", parse_name, 0),
-                entry("age", "How old are you?", "age", parse_age, 1),
-                entry("sex", "What is your gender?", "sex", parse_sex, 1),
-                entry("occupation", "What was your occupation?", "occupation", parse_free_text, 2),
                 entry(
-                    "education", "What education did you finish?", "education", parse_free_text, 2
+                    "robot_initiative_frequency",
+                    "How often should I start a conversation: low, moderate or high?",
+                    "robot_initiative_frequency",
+                    _choice_parser("low", "moderate", "high"),
+                    1,
+                    ("low", "moderate", "high"),
                 ),
-                entry("hobbies", "What are your hobbies?", "hobbies", parse_free_text, 2),
+                entry("age", "How old are you?", "age", parse_age, 2),
+                entry("sex", "What is your gender?", "sex", parse_sex, 2),
+                entry("occupation", "What was your occupation?", "occupation", parse_free_text, 3),
+                entry(
+                    "education", "What education did you finish?", "education", parse_free_text, 3
+                ),
+                entry("hobbies", "What are your hobbies?", "hobbies", parse_free_text, 3),
                 entry(
                     "lives_alone",
                     "Do you live alone?",
                     "lives_alone",
                     parse_yes_no,
-                    2,
+                    3,
                     ("yes", "no"),
                 ),
-                entry("language", "Which language do you prefer?", "language", parse_language, 3),
+                entry("language", "Which language do you prefer?", "language", parse_language, 4),
                 entry(
-                    "hearing", "Do you hear me well?", "hearing", parse_hearing, 3, ("yes", "no")
+                    "hearing", "Do you hear me well?", "hearing", parse_hearing, 4, ("yes", "no")
                 ),
                 entry(
                     "favorite_room",
                     "Which room of the house do you like best?",
                     "favorite_room",
                     parse_room,
-                    4,
-                ),
-                entry(
-                    "robot_initiative_frequency",
-                    "How often should I start a conversation: low, moderate or high?",
-                    "robot_initiative_frequency",
-                    _choice_parser("low", "moderate", "high"),
-                    4,
-                    ("low", "moderate", "high"),
+                    5,
                 ),
             ]
         )
