@@ -71,12 +71,14 @@ class Daemon:
     def lines(self) -> list[str]:
         return self.err_path.read_text().splitlines()
 
-    def wait_line(self, predicate: Callable[[str], bool], timeout: float = 30.0) -> str:
-        """The first stderr line that satisfies ``predicate`` (polled: the file is the
-        daemon's real stderr)."""
+    def wait_line(
+        self, predicate: Callable[[str], bool], timeout: float = 30.0, start: int = 0
+    ) -> str:
+        """The first stderr line from index ``start`` on that satisfies ``predicate``
+        (polled: the file is the daemon's real stderr)."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
-            for line in self.lines():
+            for line in self.lines()[start:]:
                 if predicate(line):
                     return line
             assert self.proc.poll() is None, "\n".join(self.lines()[-20:])
@@ -156,15 +158,16 @@ def test_a_reload_and_missed_ticks_are_logged(tmp_path: Path) -> None:
         reloaded = process.wait_line(lambda line: "rules and behaviors reloaded" in line)
         assert " INFO dms.reloader: " in reloaded and "robot_id=fromtoml" in reloaded
         # Freeze the process for three periods: the loop then finds itself behind.
+        before = len(process.lines())
         process.proc.send_signal(signal.SIGSTOP)
         try:
             time.sleep(1.6)
         finally:
             process.proc.send_signal(signal.SIGCONT)
-        missed = process.wait_line(lambda line: "missed" in line and "tick" in line)
-        assert " WARNING dms.daemon: " in missed and "event=missed_ticks" in missed
+        missed = process.wait_line(lambda line: "event=missed_ticks" in line, start=before)
+        assert " WARNING dms.daemon: missed " in missed
         fields = dict(part.split("=", 1) for part in missed.split() if "=" in part)
-        assert int(fields["missed"]) >= 2 and fields["missed_total"] == fields["missed"]
+        assert int(fields["missed"]) >= 2 and int(fields["missed_total"]) >= int(fields["missed"])
         assert process.stop() == 0
 
 
