@@ -10,7 +10,8 @@ A persona is a YAML file under ``sim/personas/`` (or any path). Its fields:
 - ``speech``: recognition error rate, answer delays, chance of not answering, and
   whether they rather answer by voice or on the screen;
 - ``patience``: in an activity they like less than ``dislike_below`` they touch the
-  right shoulder after ``stop_after_s`` and say "stop";
+  right shoulder after ``stop_after_s`` and say "stop"; up to ``bored_below`` they may
+  still do so, the less often the better they like it;
 - ``visits``: when they come to the robot (days, time of day, minutes).
 """
 
@@ -84,6 +85,9 @@ class Patience(_Spec):
     """When the user stops an activity they do not like."""
 
     dislike_below: Probability = 0.35
+    bored_below: Probability | None = None
+    """Between ``dislike_below`` and this liking the user may still stop the activity,
+    the less likely the better they like it (None: only below ``dislike_below``)."""
     stop_after_s: Span = Span(min=20.0, max=60.0)
     continue_rate: Probability = 0.1
     """Chance of answering "continue" after all when the robot asks."""
@@ -150,6 +154,17 @@ class Persona(_Spec):
     @property
     def id(self) -> str:
         return self.user_id or self.name
+
+    def stop_chance(self, activity: str) -> float:
+        """The chance that this user stops ``activity`` before its end: 1 below
+        ``dislike_below``, falling to 0 at ``bored_below``."""
+        liking, patience = self.liking(activity), self.patience
+        if liking < patience.dislike_below:
+            return 1.0
+        top = patience.bored_below
+        if top is None or liking >= top or top <= patience.dislike_below:
+            return 0.0
+        return (top - liking) / (top - patience.dislike_below)
 
     def liking(self, activity: str) -> float:
         """The hidden true preference for ``activity`` (0.5 when not stated)."""

@@ -19,10 +19,15 @@ Why each habit has the value it has:
   Fig. 5) before tapping one, and ``rating_delay_s``: thinking of a 1-5 rating. These
   two spans are set so that the time between activities comes out as the seed's
   (43.1 s): a calibration of the users' pace, documented as such in docs/simulation.md;
-- they stop an activity they clearly dislike after a minute or two of giving it a chance
-  (the seed: 0.53 cancels a session);
-- the hidden preferences are drawn per participant (no two alike), so the robot has
-  something to learn;
+- they stop an activity they clearly dislike (liked under 0.3) after a minute or two of
+  giving it a chance, and one they find so-so the more often the less they like it
+  (up to 0.7): the seed counted 0.53 cancels a session;
+- each participant is drawn from the simulated world the robot's seed data comes from
+  (:func:`memory.seed_data.make_persona`, kept to the seed's ages and share of women):
+  their features (age, gender, education, occupation, hobbies, living alone) and a
+  hidden taste that partly follows them and partly is their own, as the seed's
+  preference learning assumes of people ("a dataset containing the characteristics and
+  preferences of similar users"). No two are alike, so the robot has something to learn;
 - ``proactivity`` is the participant's true one: low leaves most menus to the robot
   ("you choose"), high picks and also asks for favourites by name.
 """
@@ -32,20 +37,11 @@ from __future__ import annotations
 import random
 
 from dms.kernel.activity_names import ENTERTAINMENT_ACTIVITIES
+from memory.seed_data import SimulatedPersona, make_persona
 from sim.persona import Patience, Persona, Preferences, Proactivity, Span, SpeechHabits
 
 AGES = (18, 52)
 WOMEN_SHARE = 19 / 30
-OCCUPATIONS = (
-    "student",
-    "engineer",
-    "teacher",
-    "nurse",
-    "researcher",
-    "administrative",
-    "designer",
-)
-HOBBIES = ("films", "music", "reading", "sports", "travel", "cooking", "video games")
 ASK_BY_NAME_RATE: dict[str, float] = {"low": 0.0, "moderate": 0.05, "high": 0.35}
 """After an activity, the chance of asking for a favourite by name, by true proactivity."""
 INITIATIVE_ANSWER: dict[str, str] = {"low": "high", "moderate": "moderate", "high": "low"}
@@ -60,23 +56,30 @@ SPEECH = SpeechHabits(
     menu_delay_s=Span(min=60.0, max=90.0),
     rating_delay_s=Span(min=8.0, max=14.0),
 )
-PATIENCE = Patience(dislike_below=0.3, stop_after_s=Span(min=45.0, max=120.0), continue_rate=0.1)
+PATIENCE = Patience(
+    dislike_below=0.3, bored_below=0.7, stop_after_s=Span(min=45.0, max=120.0), continue_rate=0.1
+)
+
+
+def volunteer(rng: random.Random, woman: bool) -> SimulatedPersona:
+    """One adult of the seed's ages from the simulated world the robot's seed data comes
+    from (:mod:`memory.seed_data`): features and a hidden taste that partly follows them."""
+    while True:
+        person = make_persona(rng)
+        age = int(person.features["age"])
+        if AGES[0] <= age <= AGES[1] and (person.features["sex"] == "female") == woman:
+            return person
 
 
 def paper_participant(index: int, rng: random.Random, level: Proactivity) -> Persona:
     """Participant ``index`` (1-based): an adult of 18-52 with hidden preferences of their own."""
     name = f"p{index:02d}"
-    women = rng.random() < WOMEN_SHARE
-    prefs = {activity: round(rng.betavariate(2.0, 2.0), 3) for activity in ENTERTAINMENT_ACTIVITIES}
+    person = volunteer(rng, rng.random() < WOMEN_SHARE)
     features: dict[str, str | int | float | bool] = {
         "name": name.upper(),
-        "age": rng.randint(*AGES),
-        "gender": "female" if women else "male",
-        "occupation": rng.choice(OCCUPATIONS),
-        "education": "university" if rng.random() < 0.7 else "secondary",
-        "hobbies": rng.choice(HOBBIES),
-        "lives_alone": rng.random() < 0.3,
+        **{"gender" if key == "sex" else key: value for key, value in person.features.items()},
     }
+    prefs = {activity: round(person.liking[activity], 3) for activity in ENTERTAINMENT_ACTIVITIES}
     return Persona(
         name=name,
         user_id=name,

@@ -92,6 +92,8 @@ class SimulatedUser:
         self.activity: str | None = None
         """The activity the user believes runs (from the robot's decisions)."""
         self.last_activity: str | None = None
+        self.done: set[str] = set()
+        """Entertainment activities started during this visit."""
         self._activity_serial = 0
         self._wants_stop: str | None = None
         self._perceived: tuple[tuple[str, bool, float] | None, UserPerception] | None = None
@@ -107,6 +109,7 @@ class SimulatedUser:
         """Sit down in front of the robot; ready to interact after a short while."""
         self.present = True
         self.ready = False
+        self.done = set()
         self._schedule(
             now + timedelta(seconds=_draw(self.rng, self.persona.arrive_after_s)), self._sit
         )
@@ -224,8 +227,10 @@ class SimulatedUser:
         self._wants_stop = None
         if name not in ENTERTAINMENT_ACTIVITIES:
             return
+        self.done.add(name)
         patience = self.persona.patience
-        if self.persona.liking(name) < patience.dislike_below:
+        chance = self.persona.stop_chance(name)
+        if chance >= 1.0 or (chance > 0.0 and self.rng.random() < chance):
             serial = self._activity_serial
             wait = _draw(self.rng, patience.stop_after_s)
             self._schedule(now + timedelta(seconds=wait), lambda t: self._lose_patience(serial, t))
@@ -328,7 +333,8 @@ class SimulatedUser:
         if choices and set(choices) <= set(FEEDBACK_WORDS):
             return self._rating(question)
         if choices:
-            return self._pick(choices)
+            told = self._feature_answer(question.text, choices)
+            return told if told is not None else self._pick(choices)
         return self._open_answer(question.text)
 
     def _rating(self, question: _Question) -> str:
@@ -338,12 +344,17 @@ class SimulatedUser:
         return str(score)
 
     def _pick(self, choices: Sequence[str]) -> str:
-        """A menu: the best-liked activity among them, or "you choose" (as often as the
-        persona leaves the initiative to the robot); else (a quiz) any choice."""
+        """A menu: the best-liked activity among them not done yet this visit (people
+        try different ones: the seed's participants did 4-6 different activities), or
+        "you choose" (as often as the persona leaves the initiative to the robot); else
+        (a quiz, a yes/no question) any choice."""
+        named = [(name, choice) for choice in choices if (name := _choice_activity(choice))]
+        # They came for the entertainment activities (the seed's menus, its Fig. 5).
+        named = [pair for pair in named if pair[0] in ENTERTAINMENT_ACTIVITIES] or named
+        fresh = [(name, choice) for name, choice in named if name not in self.done]
         scored = [
             (self.persona.liking(name) + self.rng.uniform(0.0, 0.25), choice)
-            for choice in choices
-            if (name := _choice_activity(choice)) is not None
+            for name, choice in (fresh or named)
         ]
         if scored:
             decline = self.persona.declines_menu()
@@ -352,6 +363,17 @@ class SimulatedUser:
                 return DECLINE_PHRASE
             return max(scored)[1]
         return self.rng.choice(list(choices))
+
+    def _feature_answer(self, text: str, choices: Sequence[str]) -> str | None:
+        """A yes/no question about one of the persona's true/false features ("Do you
+        live alone?" for ``lives_alone``): the truth, among ``choices``."""
+        lowered = {choice.lower(): choice for choice in choices}
+        if not {"yes", "no"} <= set(lowered):
+            return None
+        for name, value in self.persona.features.items():
+            if isinstance(value, bool) and _asks_about(name, text):
+                return lowered["yes" if value else "no"]
+        return None
 
     def _open_answer(self, text: str) -> str:
         lowered = text.lower()
@@ -363,6 +385,13 @@ class SimulatedUser:
         if "old" in lowered and "age" in self.persona.features:
             return str(self.persona.features["age"])
         return self.rng.choice(("yes", "I think so", "maybe", "no"))
+
+
+def _asks_about(feature: str, text: str) -> bool:
+    """Whether ``text`` asks about ``feature``: every word of its name, or the word's
+    stem (``lives`` is asked as "live"), appears in it."""
+    lowered = text.lower()
+    return all(re.search(rf"\b{re.escape(word[:4])}", lowered) for word in feature.split("_"))
 
 
 def _choices(raw: object) -> tuple[str, ...]:

@@ -161,3 +161,49 @@ def test_choices_shown_before_the_question_is_spoken_still_count() -> None:
     [(_, answer)] = _run(user, now + timedelta(seconds=10))
     assert isinstance(answer, Speech) and answer.text == "quiz"
     assert user.stats.questions_heard == 1
+
+
+def test_picks_an_activity_not_done_yet_this_visit() -> None:
+    user = SimulatedUser(_persona(), random.Random(2))
+    now = _ready(user)
+    user.on_decision(_decision("start", "quiz"), now)
+    user.on_decision(_decision("complete", "quiz"), now)
+    user.on_command(_show(["quiz", "bingo", "talk"]), now)
+    out = _run(user, now + timedelta(seconds=60))
+    # quiz is the favourite but was done; talk is not what the participants came for
+    assert [m.text for k, m in out if isinstance(m, Speech)] == ["bingo"]
+    user.leave(now)
+    now = _ready(user)  # a new visit: the favourite again
+    user.on_command(_show(["quiz", "bingo"]), now)
+    out = _run(user, now + timedelta(seconds=60))
+    assert [m.text for k, m in out if isinstance(m, Speech)] == ["quiz"]
+
+
+def test_stops_activities_the_less_often_the_better_liked() -> None:
+    from sim.persona import Patience
+
+    patience = Patience(dislike_below=0.2, bored_below=0.8, stop_after_s=5.0)  # type: ignore[arg-type]
+    persona = _persona(
+        patience=patience, preferences=Preferences(quiz=0.9, bingo=0.1, news=0.35, jokes=0.65)
+    )
+    assert persona.stop_chance("bingo") == 1.0 and persona.stop_chance("quiz") == 0.0
+    assert persona.stop_chance("news") == 0.75 and round(persona.stop_chance("jokes"), 2) == 0.25
+    touched = {"news": 0, "jokes": 0}
+    for seed in range(200):
+        for name in touched:
+            user = SimulatedUser(persona, random.Random(seed))
+            now = _ready(user)
+            user.on_decision(_decision("start", name), now)
+            out = _run(user, now + timedelta(seconds=10))
+            touched[name] += any(isinstance(m, Touch) for _k, m in out)
+    assert 120 <= touched["news"] <= 180 and 25 <= touched["jokes"] <= 75
+
+
+def test_answers_yes_or_no_about_itself_truthfully() -> None:
+    for lives_alone, expected in ((True, "yes"), (False, "no")):
+        user = SimulatedUser(_persona(features={"lives_alone": lives_alone}), random.Random(0))
+        now = _ready(user)
+        user.on_command(_say("Do you live alone?"), now)
+        user.on_command(_show(["yes", "no"]), now)
+        out = _run(user, now + timedelta(seconds=30))
+        assert [m.text for k, m in out if isinstance(m, Speech)] == [expected]
