@@ -25,7 +25,15 @@ import pytest
 
 from dms.viewer.model import LiveModel
 from dms.viewer.source import BusSource
-from tests.integration.harness import READY_TIMEOUT_S, Collector, put, query, running_daemon
+from tests.integration.harness import (
+    READY_TIMEOUT_S,
+    Collector,
+    DaemonProcess,
+    client_session,
+    put,
+    query,
+    running_daemon,
+)
 
 CHROMIUM = Path("/usr/bin/chromium")
 SCREENSHOT = Path(__file__).resolve().parents[2] / "docs" / "viewer.png"
@@ -313,6 +321,43 @@ def test_the_agenda_shows_when_the_daemon_serves_it(tmp_path: Path) -> None:
                 stream.close()
     assert [i["text"] for i in agenda["items"]] == ["The doctor at five"], agenda
     assert agenda["items"][0]["user_id"] == "ann"
+
+
+@pytest.mark.integration
+def test_one_viewer_watches_several_daemons_or_the_ones_named(tmp_path: Path) -> None:
+    for robot in ("hall", "garden"):
+        (tmp_path / robot).mkdir()
+    daemons = [DaemonProcess(tmp_path / robot, robot_id=robot) for robot in ("hall", "garden")]
+    sessions = []
+    try:
+        for daemon in daemons:
+            sessions.append(client_session(daemon.port))
+            daemon.start(sessions[-1])
+        both = [f"--connect=tcp/127.0.0.1:{d.port}" for d in daemons][1:]
+        first = daemons[0].port
+        with running_viewer(first, *both) as url:
+            _wait_alive(url, {"hall", "garden"})
+        with running_viewer(first, *both, "--robot", "garden") as url:
+            _wait_alive(url, {"garden"})
+            with urllib.request.urlopen(url + "api/snapshot", timeout=10) as response:
+                assert list(json.loads(response.read())["robots"]) == ["garden"]
+    finally:
+        for daemon in daemons:
+            daemon.kill()
+        for session in sessions:
+            session.close()
+
+
+def _wait_alive(url: str, robots: set[str]) -> None:
+    """Until the viewer's stream says each of ``robots`` is alive."""
+    stream = EventStream(url)
+    try:
+        first = stream.wait_for("snapshot", lambda _s: True)
+        alive = {robot for robot, view in first["robots"].items() if view["alive"]}
+        for robot in robots - alive:
+            stream.wait_for("robot", lambda r, robot=robot: r["robot"] == robot and r["alive"])
+    finally:
+        stream.close()
 
 
 # ---------------------------------------------------------------------- the model alone
