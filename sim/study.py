@@ -34,7 +34,7 @@ from __future__ import annotations
 import random
 import statistics
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from typing import Any, Literal
@@ -258,16 +258,8 @@ class StudyResult:
         return {key: [session_value(s, key) for s in self.sessions] for key in METRICS}
 
     def adaptation(self) -> dict[str, list[float]]:
-        """Per visit (1..repeat), the mean over participants of Kendall's tau (predicted
-        against true ranking, after the visit) and of cancels of robot-chosen activities."""
-        taus: list[float] = []
-        cancels: list[float] = []
-        for visit in range(1, self.repeat + 1):
-            rows = [s for s in self.sessions if s.visit == visit]
-            values = [s.kendall_tau for s in rows if s.kendall_tau is not None]
-            taus.append(round(statistics.fmean(values), 3) if values else 0.0)
-            cancels.append(round(_mean([float(s.robot_choice_cancels) for s in rows]), 3))
-        return {"kendall_tau_by_session": taus, "robot_choice_cancels_by_session": cancels}
+        """Per visit (1..repeat): :func:`adaptation` of these sessions."""
+        return adaptation(self.sessions, self.repeat)
 
     def to_json(self) -> dict[str, Any]:
         """CONTRACT.md's keys (per-session means), plus their standard deviations."""
@@ -317,6 +309,19 @@ class StudyResult:
             )
         lines.append(f"({self.wall_s:.1f} s wall time)")
         return "\n".join(lines)
+
+
+def adaptation(sessions: Sequence[SessionMetrics], repeat: int) -> dict[str, list[float]]:
+    """Per visit (1..repeat), the mean over participants of Kendall's tau (predicted
+    against true ranking, after the visit) and of cancels of robot-chosen activities."""
+    taus: list[float] = []
+    cancels: list[float] = []
+    for visit in range(1, repeat + 1):
+        rows = [s for s in sessions if s.visit == visit]
+        values = [s.kendall_tau for s in rows if s.kendall_tau is not None]
+        taus.append(round(statistics.fmean(values), 3) if values else 0.0)
+        cancels.append(round(_mean([float(s.robot_choice_cancels) for s in rows]), 3))
+    return {"kendall_tau_by_session": taus, "robot_choice_cancels_by_session": cancels}
 
 
 def session_value(s: SessionMetrics, key: str) -> float | None:

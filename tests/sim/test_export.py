@@ -37,3 +37,24 @@ def test_study_out_writes_sessions_decisions_and_the_figure(
         if row["why"]:
             assert isinstance(json.loads(row["why"]), dict)
     assert (out / "table4.png").read_bytes()[:8] == PNG_MAGIC
+    assert not (out / "adaptation.png").exists()  # one visit each: nothing to adapt over
+
+
+def test_returning_participants_get_the_adaptation_figure(tmp_path: Path) -> None:
+    from sim.export import write_all
+    from sim.study import SessionMetrics
+
+    sessions = [
+        SessionMetrics(
+            participant=f"p{person}",
+            visit=visit,
+            robot_decisions=2,
+            robot_choice_cancels=1 if visit == 1 else 0,
+            kendall_tau=0.5 + 0.1 * visit,
+        )
+        for visit in (1, 2, 3)
+        for person in (1, 2)
+    ]
+    paths = write_all(tmp_path, sessions, [])
+    assert paths[-1] == tmp_path / "adaptation.png"
+    assert paths[-1].read_bytes()[:8] == PNG_MAGIC
