@@ -142,3 +142,16 @@ def test_flags_over_environment_over_toml_over_defaults(
     monkeypatch.setenv("DMS_CONTROLLER__TICK_PERIOD_S", "60")
     with pytest.raises(ConfigError, match=r"^DMS_CONTROLLER__TICK_PERIOD_S \(environment\): "):
         load_config(toml)
+
+
+def test_an_abstract_notify_socket() -> None:
+    """``@name`` is Linux's abstract namespace (what systemd may hand out)."""
+    name = f"dms-notify-test-{os.getpid()}"
+    with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as sock:
+        sock.bind("\0" + name)
+        sock.settimeout(5.0)
+        notifier = Notifier({"NOTIFY_SOCKET": "@" + name})
+        assert notifier.enabled and notifier.watchdog_every_s is None  # no WATCHDOG_USEC
+        assert not notifier.watchdog()
+        assert notifier.stopping() and _states(sock) == {"STOPPING": "1"}
+        notifier.close()
