@@ -337,7 +337,17 @@ def test_one_viewer_watches_several_daemons_or_the_ones_named(tmp_path: Path) ->
         first = daemons[0].port
         with running_viewer(first, *both) as url:
             _wait_alive(url, {"hall", "garden"})
-        with running_viewer(first, *both, "--robot", "garden") as url:
+            stream = EventStream(url)
+            try:  # a daemon that stops is shown gone, the other stays
+                stream.wait_for("snapshot", lambda _s: True)
+                assert daemons[0].terminate() == 0
+                gone = stream.wait_for("robot", lambda r: r["robot"] == "hall")
+                assert not gone["alive"]
+                with urllib.request.urlopen(url + "api/snapshot", timeout=10) as response:
+                    assert json.loads(response.read())["robots"]["garden"]["alive"]
+            finally:
+                stream.close()
+        with running_viewer(daemons[1].port, "--robot", "garden") as url:
             _wait_alive(url, {"garden"})
             with urllib.request.urlopen(url + "api/snapshot", timeout=10) as response:
                 assert list(json.loads(response.read())["robots"]) == ["garden"]
