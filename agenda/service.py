@@ -165,6 +165,7 @@ class Agenda:
         claimer: str | None = None,
         offline_delivery: bool | None = None,
         poll_s: float | None = POLL_S,
+        unseen_misses: bool | None = None,
     ) -> None:
         """Open the agenda at ``url``, replay its journal and load every item.
 
@@ -176,10 +177,16 @@ class Agenda:
         claim delivers what it claimed); default: one made for this process.
         ``offline_delivery``: deliver an occurrence that cannot be claimed because the
         database is away (default: on a SQLite file only). ``poll_s``: between polls for
-        items added elsewhere, of the caller's clock (None: never).
+        items added elsewhere, of the caller's clock (None: never). ``unseen_misses``:
+        record the misses of users this robot has not seen since the occurrence fell due
+        (default: on a SQLite file only; in a fleet each robot would write every miss of
+        every user again: the robot that next sees the user records them, from the
+        cursor in the database).
         """
         self.claimer = claimer or f"{socket.gethostname()}-{os.getpid()}-{uuid.uuid4().hex[:8]}"
         self._claims: dict[tuple[int, int], tuple[str, int]] = {}
+        self._seen: dict[str, int] = {}
+        """User -> when this robot last saw them (perceived, or present at ``due``)."""
         """(item, fire time) -> (state, retry time): what this robot knows of its claims."""
         self._poll_us = None if poll_s is None else round(poll_s * US_PER_S)
         self._poll_at_us: int | None = None
@@ -212,11 +219,9 @@ class Agenda:
         try:
             self._prepare_schema()
             self._sessions = sessionmaker(self._engine, expire_on_commit=False)
-            self._offline_delivery = (
-                self._engine.dialect.name == "sqlite"
-                if offline_delivery is None
-                else offline_delivery
-            )
+            local = self._engine.dialect.name == "sqlite"
+            self._offline_delivery = local if offline_delivery is None else offline_delivery
+            self._unseen_misses = local if unseen_misses is None else unseen_misses
             path = journal_path(url) if (background if journal is None else journal) else None
             if path is not None:
                 self._journal = Spool(path)
@@ -427,6 +432,8 @@ class Agenda:
 
         In the background with ``background=True``: the index is updated when the read lands.
         """
+        with self._lock:
+            self._seen[user_id] = max(self._seen.get(user_id, 0), to_us(now))
 
         def perceive() -> None:
             try:
@@ -484,6 +491,8 @@ class Agenda:
                 elif now_us >= self._poll_at_us:
                     poll = True
                     self._poll_at_us = now_us + self._poll_us
+            if present_user is not None:
+                self._seen[present_user] = max(self._seen.get(present_user, 0), now_us)
             waiting = [] if present_user is None else self._index.waiting_for(present_user)
             to_claim = [item for item in waiting if self._needs_claim(item, now_us)]
             for item in to_claim:
@@ -594,7 +603,9 @@ class Agenda:
 
     def _sync(self, full: bool) -> None:
         """Bring the index in line with the stored cursors: of every item (``full``: the
-        items not stored any more are forgotten), or of the newest ones."""
+        items not stored any more are forgotten), or of the newest ones. A cursor behind
+        this robot's is left (its misses of users it did not see are not written: the
+        robot that next sees the user loads that cursor and writes them)."""
         items: Any = ItemRow.__table__
         query = select(items.c.id, items.c.next_fire).where(items.c.next_fire.is_not(None))
         if not full:
@@ -609,7 +620,7 @@ class Agenda:
                     item_id
                     for item_id, cursor in cursors.items()
                     if item_id not in queued
-                    and ((entry := entries.get(item_id)) is None or entry.cursor_us != cursor)
+                    and ((entry := entries.get(item_id)) is None or entry.cursor_us < cursor)
                 ]
             rows: list[ItemRow] = []
             if wanted:
@@ -706,11 +717,18 @@ class Agenda:
 
     def _advance(self, now_us: int, down: bool) -> None:
         runs = self._index.advance(now_us, down)
+        if runs and not self._unseen_misses:
+            runs = [run for run in runs if self._saw(run)]
         if runs:
             self._enqueue([_miss_entry(run) for run in runs])
             if self._flush_at_us is None:
                 self._flush_at_us = now_us + FLUSH_AFTER_S * US_PER_S
             self._forget_claims()
+
+    def _saw(self, run: MissedRun) -> bool:
+        """``_lock`` held: whether this robot saw the run's user since it fell due."""
+        due_us = run.first_us - run.item.lead_s * US_PER_S
+        return self._seen.get(run.item.user_id, -1) >= due_us
 
     def _forget_claims(self) -> None:
         """``_lock`` held: drop what we know of claims of occurrences no longer open."""
@@ -1012,14 +1030,19 @@ def _write(connection: Connection, entries: list[dict[str, Any]]) -> set[int]:
         cursors[item_id] = None if cursor is None else int(cursor)
     if not rows:
         return gone
+    # Rows in key order: robots writing overlapping rows at once take their locks in one
+    # order (PostgreSQL), so they wait for each other but never deadlock.
+    rows.sort(key=lambda row: (row["item_id"], row["fire_time"]))
     _insert_new(connection, rows)
     if claims:
+        claims.sort(key=lambda row: (row["item_id"], row["fire_time"]))
         _insert_claims(connection, claims)
     items: Any = ItemRow.__table__
-    ends = [{"item": item_id} for item_id, cursor in cursors.items() if cursor is None]
+    ordered = sorted(cursors.items())
+    ends = [{"item": item_id} for item_id, cursor in ordered if cursor is None]
     moves = [
         {"item": item_id, "cursor": from_us(cursor)}
-        for item_id, cursor in cursors.items()
+        for item_id, cursor in ordered
         if cursor is not None
     ]
     live = items.c.next_fire.is_not(None)

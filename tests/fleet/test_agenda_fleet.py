@@ -152,13 +152,15 @@ def test_an_occurrence_its_claimer_never_delivers_is_recorded_missed(fleet_url: 
 
 
 def test_a_delivery_replaces_another_robots_miss_of_it(fleet_url: str) -> None:
-    """Robot b gave up on the occurrence (its grace time ended) and wrote it missed before
-    robot a, which delivered it, could write its delivery: the log says delivered."""
+    """Both robots saw Ann; robot a claimed and delivered her reminder, robot b gave up
+    on it (its grace time ended) and wrote it missed before robot a could write its
+    delivery: the log says delivered."""
     with robots(fleet_url) as (a, b):
         item = a.add(reminder(1), NOW)
         b.user_perceived("ann", NOW)
         with _database_down_for(a):
             (due,) = a.due(NOW + MIN, "ann")
+            assert b.due(NOW + MIN, "ann") == []  # a has it
             a.delivered(due, NOW + MIN)  # journaled in memory: its write failed
         b.due(NOW + 2 * MIN, "ann")
         assert [o.outcome for o in b.history("ann")] == [Outcome.MISSED]
@@ -224,3 +226,24 @@ def test_without_the_database_a_claim_waits_or_the_item_is_delivered_offline(
             assert a.due(NOW + MIN + timedelta(seconds=1), "ann") == []  # no retry yet
             (due,) = a.due(retry, "ann")  # the database is back
             assert due.item_id == item.item_id
+
+
+def test_in_a_fleet_a_miss_is_written_by_a_robot_that_saw_the_user(fleet_url: str) -> None:
+    """Every robot holds every item; only one that saw Ann since her reminder fell due
+    writes its miss (not each robot of the fleet again). When nobody saw her, the robot
+    that next sees her finds the miss from the cursor in the database and writes it."""
+    with robots(fleet_url, unseen_misses=False) as (a, b):
+        first = a.add(reminder(1, every=3600, at=None), NOW - 59 * MIN)
+        b.user_perceived("ann", NOW - 59 * MIN)
+        a.due(NOW + 2 * MIN, None)  # ann was nowhere: neither robot writes the miss
+        b.due(NOW + 2 * MIN, None)
+        assert a.history("ann") == b.history("ann") == []
+        a.user_perceived("ann", NOW + 3 * MIN)  # robot a sees her: it writes it
+        (missed,) = a.history("ann")
+        assert (missed.item_id, missed.outcome, missed.fire_time) == (
+            first.item_id,
+            Outcome.MISSED,
+            NOW + MIN,
+        )
+        got = b.due(NOW + 61 * MIN, "ann")  # b saw her at the next one: it is hers to claim
+        assert [due.fire_time for due in got] == [NOW + 61 * MIN]
