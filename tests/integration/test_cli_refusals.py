@@ -79,10 +79,14 @@ def test_a_database_that_does_not_exist_is_refused_and_not_created(
     tmp_path: Path, command: tuple[str, ...]
 ) -> None:
     missing = tmp_path / "nowhere" / "x.db"
-    for url in (f"sqlite:///{missing}", str(missing)):
-        one_line_refusal(dms(*command, "--db", url), f"no database at {missing}")
-    # The environment's DMS_DB is read the same way.
-    one_line_refusal(dms(*command, env={"DMS_DB": str(missing)}), "no database at")
+    one_line_refusal(dms(*command, "--db", f"sqlite:///{missing}"), f"no database at {missing}")
+    assert not missing.parent.exists()
+
+
+def test_a_plain_path_and_dms_db_are_refused_the_same_way(tmp_path: Path) -> None:
+    missing = tmp_path / "nowhere" / "x.db"
+    one_line_refusal(dms("users", "list", "--db", str(missing)), f"no database at {missing}")
+    one_line_refusal(dms("users", "list", env={"DMS_DB": str(missing)}), "no database at")
     assert not missing.parent.exists()
 
 
