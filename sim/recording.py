@@ -332,6 +332,8 @@ def read_recording(path: Path) -> Recording:
         if truncated is None and not complete:
             truncated = f"the file ends without its footer: read {len(messages)} messages"
     if not messages and truncated is not None and not channels:
+        if metadata:  # an MCAP file that was cut before its first message
+            raise RecordingError(f"{path}: cut before its first message ({truncated})")
         raise RecordingError(f"{path}: not an MCAP recording ({truncated})")
     messages.sort(key=lambda message: message.log_time_ns)
     return Recording(robot_id, messages, truncated, bad, metadata, attachments)
