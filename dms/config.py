@@ -13,6 +13,9 @@ the file or the variable, the field and what was wrong
 
 from __future__ import annotations
 
+import json
+import os
+import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Literal
@@ -193,10 +196,6 @@ def environment() -> dict[str, Any]:
 
 def _not_json(error: Exception) -> str:
     """One line naming the variable whose list or table is not JSON."""
-    import json
-    import os
-    import re
-
     field = re.search(r'field "(\w+)"', str(error))
     prefix = env_name([field.group(1)]) if field else ENV_PREFIX
     mine = [(name, value) for name, value in os.environ.items() if name.upper().startswith(prefix)]
