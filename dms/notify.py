@@ -62,14 +62,15 @@ class Notifier:
         ``sd_watchdog_enabled(3)`` advises."""
         self._last_watchdog: float | None = None
         self.sent = 0
+        self.failures = 0
 
     @property
     def enabled(self) -> bool:
         return self._address is not None
 
     def send(self, **states: str | int) -> bool:
-        """Send ``NAME=VALUE`` lines in one datagram; False (logged once at debug) when
-        there is nowhere to send or the socket refused."""
+        """Send ``NAME=VALUE`` lines in one datagram; False when there is nowhere to send
+        or the socket refused (the first refusal is logged as a warning)."""
         if self._address is None:
             return False
         message = "\n".join(f"{name}={value}" for name, value in states.items())
@@ -80,7 +81,9 @@ class Notifier:
                 )
             self._socket.sendto(message.encode(), self._address)
         except OSError as error:
-            log.warning("systemd notify failed: %s", error, extra={"notify": message})
+            self.failures += 1
+            level = logging.WARNING if self.failures == 1 else logging.DEBUG  # once, not a tick
+            log.log(level, "systemd notify failed: %s", error, extra={"notify": message})
             return False
         self.sent += 1
         return True
