@@ -7,6 +7,7 @@ model holds, then each change as it happens: ``robot``, ``state``, ``decision``,
 ``error`` would be taken by the browser for the stream's own failure). ``GET
 /api/snapshot`` is the snapshot as JSON (for scripts and tests). A page that falls too far
 behind is cut off; its browser reconnects at once and starts again from a fresh snapshot.
+When the viewer stops, :meth:`LiveModel.end_streams` ends every stream at once.
 """
 
 from __future__ import annotations
@@ -64,7 +65,7 @@ def create_app(model: LiveModel) -> Starlette:
 
         def listener(name: str, data: dict[str, Any]) -> None:
             with suppress(RuntimeError):  # the server is stopping: its loop is closed
-                loop.call_soon_threadsafe(put, (name, data))
+                loop.call_soon_threadsafe(put, (name, data) if name else None)
 
         async def stream() -> AsyncIterator[str]:
             first = model.attach(listener)

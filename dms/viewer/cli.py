@@ -91,7 +91,8 @@ def view_command(
                 address = sock.getsockname()
                 url = f"http://{_url_host(host)}:{address[1]}/"
                 watched = ", ".join(robots) if robots else "every robot on the bus"
-                serve(create_app(model), sock, f"dms: viewer on {url} ({watched}); Ctrl-C stops")
+                ready = f"dms: viewer on {url} ({watched}); Ctrl-C stops"
+                serve(create_app(model), sock, ready, on_exit=model.end_streams)
             finally:
                 source.close()
     finally:

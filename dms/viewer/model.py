@@ -155,6 +155,11 @@ class LiveModel:
         with self._lock:
             return self._snapshot()
 
+    def end_streams(self) -> None:
+        """Tell every page's listener that the viewer stops (an event with no name)."""
+        with self._lock:
+            self._emit("", {})
+
     def robot_ids(self) -> list[str]:
         with self._lock:
             return sorted(self._robots)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import socket
 import sys
+from collections.abc import Callable
 from types import FrameType
 
 import uvicorn
@@ -14,15 +15,20 @@ GRACE_S = 2
 
 
 class _Server(uvicorn.Server):
-    def __init__(self, config: uvicorn.Config, ready_line: str) -> None:
+    def __init__(
+        self, config: uvicorn.Config, ready_line: str, on_exit: Callable[[], None]
+    ) -> None:
         super().__init__(config)
         self._ready_line = ready_line
+        self._on_exit = on_exit
 
     def handle_exit(self, sig: int, frame: FrameType | None) -> None:
         """Stop, without uvicorn raising the signal again afterwards: SIGINT and SIGTERM
-        are how the viewer is meant to stop, so it exits 0."""
+        are how the viewer is meant to stop, so it exits 0. Open pages' streams end now,
+        so that nothing waits for them."""
         super().handle_exit(sig, frame)
         self._captured_signals.clear()
+        self._on_exit()
 
     async def startup(self, sockets: list[socket.socket] | None = None) -> None:
         await super().startup(sockets)
@@ -30,9 +36,11 @@ class _Server(uvicorn.Server):
             print(self._ready_line, file=sys.stderr, flush=True)
 
 
-def serve(app: Starlette, sock: socket.socket, ready_line: str) -> None:
-    """Serve ``app`` on ``sock`` until SIGINT or SIGTERM."""
+def serve(
+    app: Starlette, sock: socket.socket, ready_line: str, on_exit: Callable[[], None]
+) -> None:
+    """Serve ``app`` on ``sock`` until SIGINT or SIGTERM; ``on_exit`` is called then."""
     config = uvicorn.Config(
         app, log_level="warning", access_log=False, timeout_graceful_shutdown=GRACE_S
     )
-    _Server(config, ready_line).run(sockets=[sock])
+    _Server(config, ready_line, on_exit).run(sockets=[sock])

@@ -77,6 +77,7 @@ def running_viewer(port: int, *extra: str) -> Iterator[str]:
         yield url
         proc.send_signal(signal.SIGINT)
         assert proc.wait(20) == 0, "".join(said)
+        assert "Traceback" not in "".join(said), "".join(said)
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -153,6 +154,7 @@ def test_the_viewer_streams_state_structure_and_decisions(tmp_path: Path) -> Non
             with urllib.request.urlopen(f"{url}static/{asset}", timeout=10) as response:
                 assert response.status == 200 and response.read()
 
+        lingering = EventStream(url)  # a page still open when the viewer stops
         stream = EventStream(url)
         try:
             snapshot = stream.wait_for("snapshot", lambda _s: True)
@@ -180,11 +182,12 @@ def test_the_viewer_streams_state_structure_and_decisions(tmp_path: Path) -> Non
 
         with urllib.request.urlopen(url + "api/snapshot", timeout=10) as response:
             mini = json.loads(response.read())["robots"]["mini"]
-        assert mini["alive"] and _activity(mini["state"]) == "quiz"
-        assert any(d["activity"] == "quiz" for d in mini["decisions"])
-        assert mini["samples"] and set(mini["samples"][-1][1]) == set(mini["thresholds"])
-        agenda = mini["agenda"]
-        assert agenda is not None and "serve_profiles" in agenda["error"]  # not served by default
+    lingering.close()
+    assert mini["alive"] and _activity(mini["state"]) == "quiz"
+    assert any(d["activity"] == "quiz" for d in mini["decisions"])
+    assert mini["samples"] and set(mini["samples"][-1][1]) == set(mini["thresholds"])
+    agenda = mini["agenda"]
+    assert agenda is not None and "serve_profiles" in agenda["error"]  # not served by default
 
 
 def _browser_missing() -> str | None:
