@@ -62,6 +62,7 @@ class RobotView:
     configured: dict[str, float] = field(default_factory=dict)
     """The thresholds of the daemon's ``dms/config``, once read."""
     samples: deque[list[Any]] = field(default_factory=deque)
+    """``[time, drives, motivations, wellbeing, activity]``, one a second, the last hour."""
     decisions: deque[dict[str, Any]] = field(default_factory=lambda: deque(maxlen=MAX_DECISIONS))
     errors: deque[dict[str, Any]] = field(default_factory=lambda: deque(maxlen=MAX_ERRORS))
 
@@ -271,7 +272,9 @@ class LiveModel:
         t = epoch(state.get("time"), now)
         if view.samples and t - view.samples[-1][0] < SAMPLE_EVERY_S:
             return None
-        sample = [t, drives, _numbers(motivation.get("motivations")), wellbeing]
+        activity = (_dict(state.get("activity")) or {}).get("name")
+        name = activity if isinstance(activity, str) else None
+        sample = [t, drives, _numbers(motivation.get("motivations")), wellbeing, name]
         view.samples.append(sample)
         while view.samples and view.samples[0][0] < t - HISTORY_S:
             view.samples.popleft()

@@ -138,6 +138,7 @@ function render() {
     if (all || dirty.has("structure")) renderMachine(v);
     if (all || dirty.has("state") || dirty.has("structure")) renderState(v);
     if (all || dirty.has("chart") || dirty.has("state")) renderCharts(v, all);
+    if (all || dirty.has("chart") || dirty.has("decisions")) renderStrip(v);
     if (all || dirty.has("decisions")) renderDecisions(v);
     if (all || dirty.has("errors")) renderErrors(v);
     if (all || dirty.has("agenda")) renderAgenda(v);
@@ -417,6 +418,40 @@ function seriesNames(v, field) {
   const names = new Set();
   for (const sample of v.samples) for (const name of Object.keys(obj(sample[field]) || {})) names.add(name);
   return [...names].sort();
+}
+
+function colorOf(name) {
+  let hash = 0;
+  for (const ch of String(name)) hash = (hash * 31 + ch.charCodeAt(0)) >>> 0;
+  return COLORS[hash % COLORS.length];
+}
+
+function renderStrip(v) {
+  // The activity of each chart point as runs, and each decision as a tick, over the
+  // chart's hour: what the robot did beside how its drives went.
+  const host = $("timeline-strip");
+  host.replaceChildren();
+  const samples = v.samples;
+  if (samples.length < 2) return;
+  const t0 = samples[0][0], t1 = samples[samples.length - 1][0], span = Math.max(1, t1 - t0);
+  let start = 0;
+  for (let i = 1; i <= samples.length; i++) {
+    if (i < samples.length && samples[i][4] === samples[start][4]) continue;
+    const name = samples[start][4] || null, end = samples[Math.min(i, samples.length - 1)][0];
+    const run = el("div", { class: "run" + (name ? "" : " none"), "data-activity": name || "",
+                            title: `${name || "no activity"} ${clock(samples[start][0])}–${clock(end)}` }, name || "");
+    run.style.flexGrow = String(Math.max(0.001, end - samples[start][0]));
+    if (name) run.style.background = colorOf(name);
+    host.append(run);
+    start = i;
+  }
+  for (const d of v.decisions) {
+    const t = Date.parse(d.time) / 1000;
+    if (!(t >= t0 && t <= t1)) continue;
+    const tick = el("span", { class: "tick", title: `${isoClock(d.time)} ${d.action} ${d.activity || ""} [${d.reason}]` });
+    tick.style.left = `${((t - t0) / span) * 100}%`;
+    host.append(tick);
+  }
 }
 
 function renderCharts(v, rebuild) {
