@@ -193,6 +193,31 @@ def _listening(port: int) -> zenoh.Config:
     return config
 
 
+def test_the_tools_take_a_zenoh_file(
+    daemon: tuple[DaemonProcess, zenoh.Session], tmp_path: Path
+) -> None:
+    """``--zenoh-config FILE`` instead of ``--connect``: the file's endpoints stand."""
+    process, _session = daemon
+    zenoh_file = tmp_path / "tool.json5"
+    zenoh_file.write_text(
+        json.dumps(
+            {
+                "mode": "peer",
+                "connect": {"endpoints": [f"tcp/127.0.0.1:{process.port}"]},
+                "listen": {"endpoints": []},
+                "scouting": {"multicast": {"enabled": False}},
+            }
+        )
+    )
+    use = ["--zenoh-config", str(zenoh_file)]
+    state = _run("state", "--json", *use)
+    assert state.returncode == 0 and json.loads(state.stdout)["robot"] == "mini", state.stderr
+    echo = _run("echo", "dms/state", "--json", "--count", "1", *use)
+    assert echo.returncode == 0 and json.loads(echo.stdout)["key"] == "robots/mini/dms/state"
+    topics = _run("topics", "--json", "--duration", "1", *use)
+    assert topics.returncode == 0 and "alive/dms" in json.loads(topics.stdout)["tokens"]
+
+
 def test_bad_input_is_one_line_and_nonzero(daemon: tuple[DaemonProcess, zenoh.Session]) -> None:
     process, _session = daemon
     other = ["--robot-id", "nobody", *_connect(process)]

@@ -41,21 +41,13 @@ QUIZ = {"action": "start", "activity": "quiz", "by": "test"}
 
 
 @contextmanager
-def running_viewer(port: int, *extra: str) -> Iterator[str]:
-    """``dms view --connect`` the daemon on a free HTTP port; yields the page's URL once the
-    viewer says it serves. Stopped with SIGINT, it must exit 0."""
+def running_viewer(port: int | None, *extra: str) -> Iterator[str]:
+    """``dms view --connect`` the daemon (on ``port``; None: ``extra`` says where) on a free
+    HTTP port; yields the page's URL once the viewer says it serves. Stopped with SIGINT,
+    it must exit 0."""
+    connect = ["--connect", f"tcp/127.0.0.1:{port}"] if port is not None else []
     proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "dms.cli",
-            "view",
-            "--connect",
-            f"tcp/127.0.0.1:{port}",
-            "--port",
-            "0",
-            *extra,
-        ],
+        [sys.executable, "-m", "dms.cli", "view", *connect, "--port", "0", *extra],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
@@ -350,7 +342,18 @@ def test_one_viewer_watches_several_daemons_or_the_ones_named(tmp_path: Path) ->
                     assert json.loads(response.read())["robots"]["garden"]["alive"]
             finally:
                 stream.close()
-        with running_viewer(daemons[1].port, "--robot", "garden") as url:
+        garden = tmp_path / "garden.json5"  # a Zenoh file instead of --connect
+        garden.write_text(
+            json.dumps(
+                {
+                    "mode": "peer",
+                    "connect": {"endpoints": [f"tcp/127.0.0.1:{daemons[1].port}"]},
+                    "listen": {"endpoints": []},
+                    "scouting": {"multicast": {"enabled": False}},
+                }
+            )
+        )
+        with running_viewer(None, "--zenoh-config", str(garden), "--robot", "garden") as url:
             _wait_alive(url, {"garden"})
             with urllib.request.urlopen(url + "api/snapshot", timeout=10) as response:
                 assert list(json.loads(response.read())["robots"]) == ["garden"]
