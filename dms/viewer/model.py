@@ -30,6 +30,7 @@ SAMPLE_EVERY_S = 1.0
 """At most one chart point a second per robot (the state comes twice a second)."""
 MAX_DECISIONS = 200
 MAX_ERRORS = 100
+MAX_ROBOTS = 256
 RETRY_STRUCTURE_S = 3.0
 """How soon a behavior structure that did not come (or came for another activity) is asked again."""
 
@@ -161,10 +162,6 @@ class LiveModel:
         with self._lock:
             self._emit("", {})
 
-    def robot_ids(self) -> list[str]:
-        with self._lock:
-            return sorted(self._robots)
-
     def agenda_due(self) -> list[str]:
         """The robots alive now, whose agenda is worth asking for."""
         with self._lock:
@@ -182,10 +179,14 @@ class LiveModel:
             listener(name, data)
 
     def _view(self, robot: str) -> RobotView | None:
+        """The robot's view (made on its first message), or None when it is not watched,
+        or is one too many (a peer publishing under endless ids cannot fill the memory)."""
         if self._wanted and robot not in self._wanted:
             return None
         view = self._robots.get(robot)
         if view is None:
+            if len(self._robots) >= MAX_ROBOTS:
+                return None
             view = self._robots[robot] = RobotView(robot)
         return view
 
