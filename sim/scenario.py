@@ -36,7 +36,8 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from dms.config import Settings
 from dms.kernel.activity_names import ACTIVITIES
 from dms.kernel.messages import Decision, DmsState
-from sim.specfile import Path_, load_spec, read_yaml, validate
+from dms.kernel.yamlfile import Path_
+from sim.specfile import load_spec, read_yaml, validate
 
 SCENARIO_DIR = Path(__file__).parent / "scenarios"
 Seconds = Annotated[float, Field(ge=0.0, le=366 * 86400)]
