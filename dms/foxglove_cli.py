@@ -9,6 +9,7 @@ from typing import Annotated
 
 import typer
 
+from dms.kernel import keys
 from dms.kernel.errors import ConfigError
 
 
@@ -26,16 +27,18 @@ def foxglove(
     host: Annotated[
         str, typer.Option(help="Address to serve on (loopback unless you open it).")
     ] = "127.0.0.1",
-    robot: Annotated[
-        list[str] | None,
-        typer.Option("--robot", help="Only this robot's keys (repeat; default every robot)."),
-    ] = None,
+    robot_id: Annotated[
+        str,
+        typer.Option("--robot-id", help="The robot whose keys to bridge; '*' for every robot."),
+    ] = "mini",
 ) -> None:
     """Bridge robots' keys live to Foxglove (its WebSocket protocol, with JSON Schemas)
     until SIGINT or SIGTERM."""
     from dms.bus import ZenohClient, make_client_config
     from dms.foxglove_bridge import FoxgloveBridge
 
+    if robot_id != "*" and not keys.ROBOT_ID_RE.match(robot_id):
+        raise ConfigError(f"--robot-id {robot_id!r}: lower-case letters, digits, _ and - only")
     config = make_client_config(list(connect or []), zenoh_config)
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
@@ -46,8 +49,7 @@ def foxglove(
         raise ConfigError(f"--port {port}: {' '.join(str(error).split())}") from None
     try:
         with ZenohClient("foxglove", config) as client:
-            for pattern in [f"robots/{r}/**" for r in robot or []] or ["robots/**"]:
-                client.subscribe_raw(pattern, bridge.on_sample)
+            client.subscribe_raw(f"robots/{robot_id}/**", bridge.on_sample)
             typer.echo(
                 f"dms foxglove: ws://{host}:{bridge.port} (Foxglove: Open connection, "
                 "Foxglove WebSocket)",
