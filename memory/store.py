@@ -289,6 +289,11 @@ class ProfileStore:
                 "it empty"
             )
         self._sessions = sessionmaker(self.engine, expire_on_commit=False)
+        self._reads = sessionmaker(
+            self.engine.execution_options(isolation_level="AUTOCOMMIT"), expire_on_commit=False
+        )
+        """Sessions for one-statement reads: no BEGIN and COMMIT round trips (a profile
+        load is one SELECT of the user joined with their scores, consistent by itself)."""
         self._dialect = self.engine.dialect.name
         self._count_lock = threading.Lock()
         self._since_prune = 0
@@ -296,6 +301,17 @@ class ProfileStore:
         """Field writes retried because another writer changed the row first."""
 
     # ------------------------------------------------------------------ plumbing
+
+    @contextmanager
+    def _read(self) -> Iterator[Session]:
+        """One read outside any transaction; errors classified as :meth:`_session`'s."""
+        try:
+            with self._reads() as session:
+                yield session
+        except ProfileError:
+            raise
+        except SQLAlchemyError as error:
+            raise classify(error) from None
 
     @contextmanager
     def _session(self) -> Iterator[Session]:
@@ -511,11 +527,12 @@ class ProfileStore:
             "initiative_offered": 0,
             "version": 1,
         }
+        with self._read() as session:  # the user is known: one SELECT, no transaction
+            row = session.get(UserRow, user_id)
+            if row is not None:
+                return snapshot(row)
         try:
             with self._session() as session:
-                row = session.get(UserRow, user_id)
-                if row is not None:
-                    return snapshot(row)
                 if self._dialect in ("sqlite", "postgresql"):
                     module: Any = sqlite if self._dialect == "sqlite" else postgresql
                     session.execute(
@@ -534,7 +551,7 @@ class ProfileStore:
 
     def get(self, user_id: str) -> Profile:
         """The user's profile; ProfileNotFound if there is none."""
-        with self._session() as session:
+        with self._read() as session:
             return snapshot(self._user(session, user_id))
 
     def update(
