@@ -1277,6 +1277,12 @@ class Controller:
         session = self._session
         user_id = session.user_id if session is not None else None
         ready = user_id is not None and self._ready_user() == user_id
+        p_user = session.p_user if session is not None else None
+        proactivity = (  # for a viewer: what the mode was drawn from
+            str(getattr(self._profile(), "proactivity", None) or "unknown")
+            if session is not None
+            else None
+        )
         robot, tick = self.robot_id, self._tick
         mode: Mode = session.mode if session is not None else "motivation"
         activity = self._activity_state(self.current)
@@ -1290,7 +1296,11 @@ class Controller:
                 tick=tick,
                 time=iso(now),
                 mode=mode,
-                user=UserState(id=user_id, ready=ready) if user_id is not None else None,
+                user=(
+                    UserState(id=user_id, ready=ready, proactivity=proactivity, p_user=p_user)
+                    if user_id is not None
+                    else None
+                ),
                 activity=ActivityState(**activity) if activity is not None else None,
                 suspended=ActivityState(**suspended) if suspended is not None else None,
                 motivation=motivation.get(),
