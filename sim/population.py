@@ -21,7 +21,7 @@ Why each habit has the value it has:
   (43.1 s): a calibration of the users' pace, documented as such in docs/simulation.md;
 - they stop an activity they clearly dislike (liked under 0.3) after a minute or two of
   giving it a chance, and one they find so-so the more often the less they like it
-  (up to 0.7): the seed counted 0.53 cancels a session;
+  (up to 0.65): the seed counted 0.53 cancels a session;
 - each participant is drawn from the simulated world the robot's seed data comes from
   (:func:`memory.seed_data.make_persona`, kept to the seed's ages and share of women):
   their features (age, gender, education, occupation, hobbies, living alone) and a
@@ -57,7 +57,7 @@ SPEECH = SpeechHabits(
     rating_delay_s=Span(min=8.0, max=14.0),
 )
 PATIENCE = Patience(
-    dislike_below=0.3, bored_below=0.7, stop_after_s=Span(min=45.0, max=120.0), continue_rate=0.1
+    dislike_below=0.3, bored_below=0.65, stop_after_s=Span(min=45.0, max=120.0), continue_rate=0.1
 )
 
 
