@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import pytest
@@ -100,6 +101,9 @@ def test_step_skip_lets_the_question_time_out() -> None:
     assert "waiting for an answer" not in result.output
 
 
+@pytest.mark.skipif(
+    shutil.which("dot") is None, reason="Graphviz's dot is not installed (.ci/run installs it)"
+)
 def test_show_draws_svg_and_png_with_graphviz(tmp_path: Path) -> None:
     svg = runner.invoke(app, ["show", QUIZ, "--format", "svg"])
     assert svg.exit_code == 0, svg.output
