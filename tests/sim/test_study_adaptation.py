@@ -22,7 +22,9 @@ def test_kendall_tau_compares_the_same_activities_by_position() -> None:
 
 
 def test_tau_reaches_0_7_by_the_fifth_visit_and_grows() -> None:
-    result = run_study(8, 30.0, "moderate", 0, study_settings(), repeat=5)
+    # 20 participants: a participant's tau spreads by about 0.15, so fewer would test the
+    # luck of the draw more than the learning (the figure in docs/adaptation.png has 30).
+    result = run_study(20, 30.0, "moderate", 0, study_settings(), repeat=5)
     taus = result.adaptation()["kendall_tau_by_session"]
     assert len(taus) == 5
     assert taus[4] >= 0.7, taus
