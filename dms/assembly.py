@@ -158,7 +158,9 @@ def build_stack(
             return profiles.met(user_id) or user_id in store.list_ids()
 
         try:
-            agenda = Agenda(url, user_exists=user_exists, background=background_io)
+            agenda = Agenda(
+                url, user_exists=user_exists, background=background_io, claimer=settings.robot_id
+            )
         except AgendaError as error:
             profiles.close()
             store.close()

@@ -632,7 +632,9 @@ class Controller:
                 if reason == "input_missing"
                 else f"{session.user_id} is gone"
             )
-            outcome = "cancelled" if reason == "user_left" else "stopped"
+            # leaving (or going unseen) says nothing of what the user thought of the
+            # activity: the session's end cut it (only the user's own stop counts)
+            outcome = "stopped"
             for running in (self.current, self.suspended):
                 if running is not None and running.user_id == session.user_id:
                     self._cancel(running, reason, now, why)
@@ -1003,6 +1005,9 @@ class Controller:
             return
         if self._ask_general_question(session, now):
             return
+        # step 6: the user's proactivity is read before every choice, so the answer to
+        # the question on initiative and what the user did since count from the first
+        session.mode, session.p_user, session.mode_detail = self._choose_mode(self._profile())
         robot_turn, session.robot_turn = session.robot_turn, False
         draw = None if robot_turn else self.rng.random()
         mode = ModeWhy(p_user=session.p_user, draw=draw and round(draw, 4), mode=session.mode)

@@ -9,16 +9,7 @@ selections, high the reverse, from the first visit on.
 
 from __future__ import annotations
 
-import pytest
-
 from sim.study import run_study, study_settings
-
-MODE_READ_AT_EACH_CHOICE = pytest.mark.xfail(
-    strict=True,
-    reason="needs the controller to read the user's proactivity before each choice (the "
-    "seed's step 6), not only when the session begins: see the diff for dms/controller.py "
-    "in issue 12's report; remove this mark when it is applied",
-)
 
 
 def test_low_proactivity_lets_the_robot_choose() -> None:
@@ -45,7 +36,6 @@ def _split(level: str, sessions: int) -> tuple[int, int]:
     return robot, user
 
 
-@MODE_READ_AT_EACH_CHOICE
 def test_high_proactivity_takes_the_initiative_from_the_first_visit() -> None:
     robot, user = _split("high", 10)
     assert user >= 2 * robot, (robot, user)

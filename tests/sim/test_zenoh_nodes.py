@@ -95,9 +95,10 @@ def test_sim_robot_answers_commands_over_zenoh(tmp_path: Path) -> None:
         wait_token(session, "robots/mini/alive/dms", present=True)
         thread.start()
         wait_token(session, "robots/mini/alive/robot/feedback", present=True, timeout=10.0)
+        mark = commands.mark()  # a command sent before the robot listened gets no answer
         put(session, "perception/user", {"present": True, "user_id": "alice", "ready": True})
         put(session, "request", {"action": "start", "activity": "jokes", "by": "test"})
-        command = commands.wait_for(lambda c: c["action"] != "interrupt", timeout=10.0)
+        command = commands.wait_for(lambda c: c["action"] != "interrupt", timeout=10.0, start=mark)
         done = feedback.wait_for(
             lambda f: f["id"] == command["id"] and f["status"] in ("done", "interrupted"),
             timeout=30.0,
