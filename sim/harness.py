@@ -124,6 +124,15 @@ class Simulation:
         self.perception_on = True
         self.period = self.settings.controller.tick_period_s
         self.idle_step_s: float | None = None
+        self.prediction_s: float | None = None
+        """How far ahead one prediction of the motivated behavior may serve the idle steps
+        that follow it (None: one prediction per idle step). Only for runs whose inputs
+        stay as they are while nobody is there (a long-term run): an input going stale
+        between idle ticks would not be seen by a prediction made before."""
+        self._prediction: tuple[tuple[object, ...], float | None, float] | None = None
+        """(what it assumed, the virtual second of the change or None, its horizon's end)."""
+        self._actions_run = 0
+        self._inputs_fed = 0
         self.periodic = True
         """False: tick only when told (a replay ticks at the recorded times)."""
         self.ticks = 0
@@ -216,6 +225,7 @@ class Simulation:
 
     def feed(self, key: str, message: BaseModel) -> None:
         """Deliver one input now, as the bus would."""
+        self._inputs_fed += 1
         self.stack.inputs.accept(key, message, self.clock.monotonic())
 
     # ------------------------------------------------------------ users
@@ -243,11 +253,12 @@ class Simulation:
 
     def tick(self, urgent: bool = False) -> TickRecord:
         """One controller tick now, with the perception refreshed first."""
-        if self.perception_on:
+        if self.perception_on:  # a refresh of what is perceived, not a new input
+            monotonic = self.clock.monotonic()
             if self.user is not None:
-                self.feed(keys.PERCEPTION_USER, self.user.perception())
+                self.stack.inputs.accept(keys.PERCEPTION_USER, self.user.perception(), monotonic)
             elif self.presence is not None:
-                self.feed(keys.PERCEPTION_USER, self.presence)
+                self.stack.inputs.accept(keys.PERCEPTION_USER, self.presence, monotonic)
         now = self.clock.now()
         record = self.controller.tick(now, self.clock.monotonic(), urgent)
         self.ticks += 1
@@ -300,8 +311,41 @@ class Simulation:
         if self.controller.dialog is not None:
             return self.period
         # Never past the tick where the motivated behavior changes: the switch stays exact.
-        change = self.controller.next_motivated_change(self.clock.now(), idle)
+        change = self._motivated_change(idle)
         return idle if change is None else max(self.period, change)
+
+    def _motivated_change(self, idle: float) -> float | None:
+        """``controller.next_motivated_change(now, idle)``; with :attr:`prediction_s`, from
+        one prediction that far ahead while nothing happened since it was made but idle
+        ticks (no decision, input or scripted action; the same activity and presence).
+
+        Within its horizon a longer prediction starts with the same ticks as a shorter
+        one, and the model is exact over any step, so each idle step gets the answer it
+        would have got from a prediction of its own.
+        """
+        horizon = self.prediction_s
+        if horizon is None or horizon <= idle:
+            return self.controller.next_motivated_change(self.clock.now(), idle)
+        t = self.t
+        current = self.controller.current
+        assumed = (
+            len(self.decisions),
+            self._actions_run,
+            self._inputs_fed,
+            self.presence,
+            current.name if current is not None else None,
+            current is not None and current.paused,
+        )
+        made = self._prediction
+        if made is not None and made[0] == assumed:
+            _assumed, change_at, end = made
+            if change_at is not None and change_at > t:
+                return change_at - t if change_at - t <= idle else None
+            if change_at is None and t + idle <= end:
+                return None
+        change = self.controller.next_motivated_change(self.clock.now(), horizon)
+        self._prediction = (assumed, None if change is None else t + change, t + horizon)
+        return change if change is not None and change <= idle else None
 
     def run_until(self, t_end: float) -> None:
         """Tick (periodically and on urgent inputs) until virtual second ``t_end``."""
@@ -321,6 +365,7 @@ class Simulation:
             urgent = False
             while self._queue and self._queue[0].t <= self.t:
                 scheduled = heapq.heappop(self._queue)
+                self._actions_run += 1
                 scheduled.action()
                 urgent = urgent or scheduled.urgent
             urgent = self._user_outputs() or urgent

@@ -41,6 +41,9 @@ if TYPE_CHECKING:
     from sim.harness import Simulation, TimedDecision
 
 IDLE_STEP_S = 300.0
+PREDICTION_S = 1800.0
+"""One prediction of the motivated behavior serves the idle steps of half an hour (a
+longer one costs about what it saves)."""
 SAMPLE_EVERY_S = 300.0
 START = datetime(2026, 11, 23, 0, 0, tzinfo=UTC)  # a Monday
 
@@ -220,6 +223,7 @@ def run_longterm(
     visits = plan_visits(personas, days, rng)
     with Simulation(settings, seed=seed, start=START) as sim:
         sim.idle_step_s = idle_step_s
+        sim.prediction_s = PREDICTION_S
         tracker = _Tracker(START)
         sim.tick_listeners.append(lambda record: tracker.on_tick(sim.t, record))
         people = [
