@@ -19,6 +19,7 @@ of the process wait until the launch is over before they start. No delay by defa
 from __future__ import annotations
 
 import random
+from collections import deque
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 from datetime import datetime, timedelta
@@ -47,6 +48,7 @@ MOTION_SECONDS: dict[str, float] = {
 DEFAULT_MOTION_S = 2.0
 DEFAULT_MEDIA_S = 30.0
 DEFAULT_WPM = 150.0
+LOG_KEPT = 1000
 LAUNCHED_KEPT = 16
 """Launched processes remembered (an activity paused and resumed is not launched again)."""
 
@@ -89,8 +91,9 @@ class SimRobot:
         self._out: list[tuple[datetime, int, RobotFeedback]] = []
         self._seq = 0
         self._faults: dict[str, Fault] = {}
-        self.log: list[tuple[datetime, RobotCommand]] = []
-        """Every command received, with when: for tests and the stepper."""
+        self.log: deque[tuple[datetime, RobotCommand]] = deque(maxlen=LOG_KEPT)
+        """The last :data:`LOG_KEPT` commands received, with when: for tests and the stepper
+        (all of them grew the daemon's ``--robot sim`` by a megabyte a simulated day)."""
         self.screen: dict[str, object] = {}
         """What the screen shows now (the last ``show``)."""
         self.leds: dict[str, object] = {}
