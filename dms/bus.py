@@ -99,16 +99,21 @@ def make_client_config(
     config_file: Path | None = None,
     timeout_s: float = TOOL_CONNECT_TIMEOUT_S,
 ) -> zenoh.Config:
-    """A tool's configuration: a peer that listens nowhere and connects to ``connect`` (by
-    default the daemon's default endpoint), or to the file's endpoints. Opening it fails,
-    with Zenoh's reason, when none of them answers within ``timeout_s``; once open, a lost
-    link is retried in the background (a restarted daemon is found again)."""
+    """A tool's configuration: it listens nowhere and connects to ``connect`` (by default
+    the daemon's default endpoint), or to the file's endpoints. Given one endpoint (a
+    router, or a daemon) it is a Zenoh client of it: routed at once, so a query made
+    right after opening is answered (a peer behind a router first waits for its links to
+    the other peers). Given several (daemons without a router) it is a peer of each.
+    Opening fails, with Zenoh's reason, when none answers within ``timeout_s``; once
+    open, a lost link is retried in the background (a restarted daemon is found again)."""
     if config_file is None and not connect:
         connect = (DEFAULT_CONNECT,)
     config = make_config(connect=connect, config_file=config_file)
     try:
         if config_file is None:
             config.insert_json5("listen/endpoints", "[]")
+            if len(connect) == 1:
+                config.insert_json5("mode", json.dumps("client"))
         config.insert_json5("connect/exit_on_failure", "true")
         config.insert_json5("connect/timeout_ms", str(int(timeout_s * 1000)))
     except (zenoh.ZError, ValueError) as error:
