@@ -114,6 +114,11 @@ class ControllerSettings(_Section):
     perception_grace_s: float = Field(60.0, gt=0.0)
     """How long a session outlives stale or missing ``perception/user`` (the user is then
     unknown, not gone: the activity goes on, nothing new starts) before it ends."""
+    resume_cut_within_s: float = Field(0.0, ge=0.0)
+    """A user seen again, at this robot or another of the fleet, within this long after a
+    session end (she left) cut her activity, gets that activity again, started afresh
+    (reason ``resumed``); 0, the default: never (a robot does not carry on with what
+    another one was doing)."""
     cleanup_limit_s: float = Field(10.0, ge=0.0)
     """A cancelled activity's cleanup states (the quiz saying it stops) may run this long;
     0 stops activities at once, without cleanup."""

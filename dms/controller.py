@@ -208,6 +208,9 @@ class _Session:
     robot's."""
     account: SessionAccount | None = None
     """The session's Table 4 metrics, stored with it when it ends."""
+    resume: tuple[str, ChosenBy, float] | None = None
+    """An activity a session end cut (here or at another robot), to start again first:
+    (name, who chose it, seconds since), with ``resume_cut_within_s``."""
 
 
 class Controller:
@@ -633,8 +636,9 @@ class Controller:
                 else f"{session.user_id} is gone"
             )
             # leaving (or going unseen) says nothing of what the user thought of the
-            # activity: the session's end cut it (only the user's own stop counts)
-            outcome = "stopped"
+            # activity: the session's end cut it (only the user's own stop counts), and
+            # a robot that sees her again may resume it (resume_cut_within_s)
+            outcome = "cut"
             for running in (self.current, self.suspended):
                 if running is not None and running.user_id == session.user_id:
                     self._cancel(running, reason, now, why)
@@ -675,7 +679,26 @@ class Controller:
             ),
         )
         session.mode, session.p_user, session.mode_detail = self._choose_mode(profile)
+        session.resume = self._cut_to_resume(user_id, now)
         log.info("user %s is ready (mode %s)", user_id, session.mode)
+
+    def _cut_to_resume(self, user_id: str, now: datetime) -> tuple[str, ChosenBy, float] | None:
+        """The user's last run, if a session end cut it within ``resume_cut_within_s``
+        (read off the tick, waited for like the profile; not in time: nothing)."""
+        window = self.settings.resume_cut_within_s
+        if window <= 0 or self.deps.profiles is None:
+            return None
+        last = self.deps.profiles.ask("last_run", user_id)
+        if not isinstance(last, dict) or last.get("outcome") != "cut":
+            return None
+        name, ended = last.get("activity"), last.get("ended")
+        if name not in ACTIVITIES or not isinstance(ended, datetime):
+            return None
+        age = (now - ended).total_seconds()
+        if not 0 <= age <= window:
+            return None
+        chosen_by = last.get("chosen_by")
+        return str(name), chosen_by if chosen_by in ("robot", "user") else "robot", age
 
     def _end_session(self, now: datetime) -> None:
         session = self._session
@@ -1005,6 +1028,12 @@ class Controller:
             return
         if self._ask_general_question(session, now):
             return
+        if session.resume is not None:  # what she was doing when a session end cut it
+            name, chosen_by, age = session.resume
+            session.resume = None
+            detail = f"cut {age:.0f} s ago when {session.user_id} left"
+            if self._start(name, "resumed", chosen_by, now, detail):
+                return
         # step 6: the user's proactivity is read before every choice, so the answer to
         # the question on initiative and what the user did since count from the first
         session.mode, session.p_user, session.mode_detail = self._choose_mode(self._profile())

@@ -97,6 +97,14 @@ class ProfileService:
             return waiter.result
         return self.cached(user_id)
 
+    def ask(self, method: str, *args: Any, wait_s: float = LOAD_WAIT_S) -> Any:
+        """A store read, in order behind the writes queued before it, waiting at most
+        ``wait_s``: its result, or None when it has not landed by then."""
+        waiter = Waiter()
+        self.writer.submit(Write(method, args), waiter)
+        waiter.wait(wait_s)
+        return waiter.result
+
     def met(self, user_id: str) -> bool:
         """The robot has met ``user_id`` in this run: their profile exists, or is being
         written (the agenda accepts items for them before the write lands)."""

@@ -549,6 +549,27 @@ class ProfileStore:
         # Another writer created it between our read and our insert.
         return self.get(user_id)
 
+    def last_run(self, user_id: str) -> dict[str, Any] | None:
+        """The user's latest activity run at any robot of the fleet (``activity``,
+        ``ended``, ``outcome``, ``chosen_by``), None if there is none: a robot that
+        meets her reads it to resume what another robot's session end cut."""
+        _check_user_id(user_id)
+        with self._read() as session:
+            row = session.scalars(
+                select(ActivityRunRow)
+                .where(ActivityRunRow.user_id == user_id)
+                .order_by(ActivityRunRow.ended_at.desc(), ActivityRunRow.id.desc())
+                .limit(1)
+            ).first()
+        if row is None:
+            return None
+        return {
+            "activity": row.activity,
+            "ended": row.ended_at,
+            "outcome": row.outcome,
+            "chosen_by": row.chosen_by,
+        }
+
     def get(self, user_id: str) -> Profile:
         """The user's profile; ProfileNotFound if there is none."""
         with self._read() as session:

@@ -240,6 +240,7 @@ Reason = Literal[
     "feedback",
     "general_question",
     "shutdown",
+    "resumed",
 ]
 ChosenBy = Literal["robot", "user", "agenda", "motivation"]
 
