@@ -22,6 +22,7 @@ from activities.template import as_text, is_single_placeholder
 from dms.kernel.activity_names import USER_SELECTABLE
 from dms.kernel.expression import CommandHandle, CommandStatus, Priority
 from dms.kernel.messages import Channel, ScreenChoice, Speech, Touch
+from dms.kernel.words import digits
 
 
 @dataclass(frozen=True)
@@ -362,17 +363,9 @@ def _words(text: str) -> str:
     return " " + " ".join(re.findall(r"[\w']+", text.lower())) + " "
 
 
-NUMBER_WORDS = {
-    "zero": "0", "one": "1", "two": "2", "three": "3", "four": "4", "five": "5",
-    "six": "6", "seven": "7", "eight": "8", "nine": "9", "ten": "10",
-}  # fmt: skip
-
-
 def match_answer(text: str, choices: Sequence[str]) -> str | None:
     """The choice ``text`` names (the longest one said as whole words), else None."""
-    spoken = _words(text)
-    spoken = " ".join(NUMBER_WORDS.get(w, w) for w in spoken.split())
-    spoken = f" {spoken} "
+    spoken = f" {digits(_words(text))} "  # "six" answers "6"
     best: str | None = None
     for choice in choices:
         wanted = _words(choice)
