@@ -238,3 +238,20 @@ def paced(items: Iterable[T], rate: float, stop: threading.Event | None = None) 
         if stop.wait(max(0.0, started + index / rate - time.monotonic())):
             return
         yield item
+
+
+def wait_subscribed(session: zenoh.Session, key: str, timeout: float = READY_TIMEOUT_S) -> None:
+    """Return once some subscriber (a recorder on ``robots/mini/**``) matches a publisher
+    on ``key``, a key nobody else uses: Zenoh's matching status, no guessing."""
+    publisher = session.declare_publisher(key)
+    matched = threading.Event()
+
+    def on_status(status: zenoh.MatchingStatus) -> None:
+        if status.matching:
+            matched.set()
+
+    publisher.declare_matching_listener(on_status)
+    current = publisher.matching_status  # a MatchingStatus (the stub says bool)
+    if getattr(current, "matching", current):
+        matched.set()
+    assert matched.wait(timeout), f"nothing subscribed to {key} within {timeout} s"

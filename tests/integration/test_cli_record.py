@@ -17,11 +17,10 @@ import threading
 from pathlib import Path
 
 import pytest
-import zenoh
 from mcap.reader import make_reader
 
 from activities.library import BEHAVIORS_DIR
-from tests.integration.harness import Collector, free_port, put, running_daemon
+from tests.integration.harness import Collector, free_port, put, running_daemon, wait_subscribed
 
 pytestmark = pytest.mark.integration
 
@@ -33,22 +32,6 @@ PROBE = "robots/mini/test/record-probe"
 def dms(*args: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
     clean = {k: v for k, v in os.environ.items() if not k.startswith("DMS_")}
     return subprocess.run([*DMS, *args], capture_output=True, text=True, timeout=timeout, env=clean)
-
-
-def _wait_subscribed(session: zenoh.Session, timeout: float = 30.0) -> None:
-    """Return once a subscriber to robots/mini/** (the recorder) matches a publisher."""
-    publisher = session.declare_publisher(PROBE)
-    matched = threading.Event()
-
-    def on_status(status: zenoh.MatchingStatus) -> None:
-        if status.matching:
-            matched.set()
-
-    publisher.declare_matching_listener(on_status)
-    current = publisher.matching_status
-    if getattr(current, "matching", current):
-        matched.set()
-    assert matched.wait(timeout), "the recorder never subscribed"
 
 
 class StderrLines:
@@ -104,7 +87,7 @@ def test_record_info_replay_round_trip_with_no_flags(tmp_path: Path) -> None:
         )
         lines = StderrLines(recorder)
         try:
-            _wait_subscribed(session)
+            wait_subscribed(session, PROBE)
             # The daemon answered the recorder's dms/config: their link is up.
             lines.wait_for("configuration for replay")
             # Two ticks on, the recorder holds a state from before the visit.

@@ -10,7 +10,6 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 from pathlib import Path
 from typing import Any
 
@@ -19,28 +18,12 @@ import zenoh
 from mcap.reader import make_reader
 
 from sim.recording import read_recording
-from tests.integration.harness import Collector, put, running_daemon
+from tests.integration.harness import Collector, put, running_daemon, wait_subscribed
 
 pytestmark = pytest.mark.integration
 
 PROBE = "robots/mini/test/probe"
 """A key only the recorder (``robots/mini/**``) subscribes to."""
-
-
-def _wait_matching(session: zenoh.Session, timeout: float = 20.0) -> None:
-    """Return once a subscriber (the recorder) matches a publisher on :data:`PROBE`."""
-    publisher = session.declare_publisher(PROBE)
-    matched = threading.Event()
-
-    def on_status(status: zenoh.MatchingStatus) -> None:
-        if status.matching:
-            matched.set()
-
-    publisher.declare_matching_listener(on_status)
-    current = publisher.matching_status  # a MatchingStatus (the stub says bool)
-    if getattr(current, "matching", current):
-        matched.set()
-    assert matched.wait(timeout), "the recorder never subscribed"
 
 
 def _record(out: Path, port: int) -> subprocess.Popen[str]:
@@ -74,7 +57,7 @@ def _record_one_visit(
     first = decisions.mark()
     recorder = _record(out, port)
     try:
-        _wait_matching(session)
+        wait_subscribed(session, PROBE)
         put(session, "perception/user", {"present": True, "user_id": "alice", "ready": True})
         decisions.wait_for(lambda d: d["reason"] == "user_arrived", start=first)
         put(session, "request", {"action": "start", "activity": "jokes", "by": "test"})
