@@ -8,32 +8,16 @@ follows them; shutdown and ``cleanup_limit_s = 0`` still stop at once.
 
 from __future__ import annotations
 
-from datetime import UTC, datetime
+from datetime import datetime
 
-from dms.config import Settings
 from dms.kernel import keys
-from dms.kernel.messages import Request, RobotCommand, Speech, Touch, UserPerception
+from dms.kernel.messages import Request, RobotCommand, Speech, Touch
 from sim.harness import Simulation
-
-START = datetime(2026, 11, 23, 10, 0, tzinfo=UTC)
-ANN = UserPerception(present=True, user_id="ann", ready=True, engagement=0.8)
+from tests.core.scripted import quiet_settings, seated
 
 
 def _sim(**controller: object) -> Simulation:
-    settings = Settings.model_validate(
-        {
-            "controller": {
-                "session_questions": 0,
-                "question_every": 0,
-                "feedback_probability": 0.0,
-                **controller,
-            },
-        }
-    )
-    sim = Simulation(settings, seed=4, start=START)
-    sim.presence = ANN
-    sim.feed(keys.PERCEPTION_USER, ANN)
-    return sim
+    return seated(quiet_settings(dict(controller)))
 
 
 def _speech(sim: Simulation) -> list[str]:

@@ -7,36 +7,18 @@ scripted here, so that each test says exactly what the user does.
 
 from __future__ import annotations
 
-from datetime import UTC, datetime
-
 import pytest
 
-from dms.config import Settings
 from dms.kernel import keys
-from dms.kernel.messages import Request, Speech, UserPerception
+from dms.kernel.messages import Request, Speech
 from memory import proactivity
 from sim.harness import Simulation
-
-START = datetime(2026, 11, 23, 10, 0, tzinfo=UTC)
-ANN = UserPerception(present=True, user_id="ann", ready=True, engagement=0.8)
+from tests.core.scripted import quiet_settings, seated
 
 
 def _sim(**controller: object) -> Simulation:
-    settings = Settings.model_validate(
-        {
-            "inputs": {"stale_after_s": {"perception/user": 5.0}},
-            "controller": {
-                "session_questions": 0,
-                "question_every": 0,
-                "feedback_probability": 0.0,
-                **controller,
-            },
-        }
-    )
-    sim = Simulation(settings, seed=4, start=START)
-    sim.presence = ANN
-    sim.feed(keys.PERCEPTION_USER, ANN)
-    return sim
+    inputs = {"stale_after_s": {"perception/user": 5.0}}
+    return seated(quiet_settings(dict(controller), inputs=inputs))
 
 
 def _say(sim: Simulation, text: str) -> None:
