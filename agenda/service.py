@@ -140,12 +140,13 @@ class _Record:
     journaled: bool
 
 
-def journal_path(url: str) -> Path | None:
-    """Where the agenda's journal for ``url`` lives; None for an in-memory database."""
+def journal_path(url: str, owner: str | None = None) -> Path | None:
+    """Where the agenda's journal for ``url`` lives (``owner``'s own: a robot id); None
+    for an in-memory database."""
     parsed = make_url(as_url(url))  # a plain file path (``--db dms.db``) too
     if parsed.get_backend_name() == "sqlite" and parsed.database in (None, "", ":memory:"):
         return None
-    return side_file(url, JOURNAL_SUFFIX)
+    return side_file(url, JOURNAL_SUFFIX, owner)
 
 
 def _one_line(error: BaseException) -> str:
@@ -222,7 +223,9 @@ class Agenda:
             local = self._engine.dialect.name == "sqlite"
             self._offline_delivery = local if offline_delivery is None else offline_delivery
             self._unseen_misses = local if unseen_misses is None else unseen_misses
-            path = journal_path(url) if (background if journal is None else journal) else None
+            path = (
+                journal_path(url, claimer) if (background if journal is None else journal) else None
+            )
             if path is not None:
                 self._journal = Spool(path)
                 self._replay_journal()

@@ -138,7 +138,9 @@ def build_stack(
             store = ProfileStore(url, WRITER_BUSY_TIMEOUT_S if background_io else None)
         except ProfileError as error:
             raise ConfigError(f"database {url}: {error}") from None
-        profiles = ProfileService(store, report_error, threaded=background_io)
+        profiles = ProfileService(
+            store, report_error, threaded=background_io, owner=settings.robot_id
+        )
         if retrain:
             model = PreferenceModel.from_seed()  # the store's model: Stack.when_ready
         else:  # the simulator: trained here, so that a seeded run never depends on threads

@@ -1097,8 +1097,6 @@ class Controller:
         session.asked.add(question.id)
         session.questions_left = max(0, session.questions_left - 1)
         self._question = question
-        from datetime import timedelta
-
         self._open_dialog(
             Dialog(
                 DialogKind.GENERAL_QUESTION,

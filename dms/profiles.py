@@ -66,15 +66,18 @@ class ProfileService:
         queue_size: int = QUEUE_SIZE,
         spool_path: Path | None = None,
         quarantine_path: Path | None = None,
+        owner: str | None = None,
     ) -> None:
+        """``owner``: the robot id, so that robots sharing a database on one machine keep
+        their own spool and quarantine files (:func:`memory.db.side_file`)."""
         self.store = store
         self._cache: dict[str, Profile] = {}
         self._cache_lock = threading.Lock()
         self._met: set[str] = set()
         self.writer = StorageWriter(
             self._apply,
-            spool_path or side_file(store.url, "spool"),
-            quarantine_path or side_file(store.url, "quarantine"),
+            spool_path or side_file(store.url, "spool", owner),
+            quarantine_path or side_file(store.url, "quarantine", owner),
             report,
             self._done,
             threaded=threaded,

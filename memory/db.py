@@ -8,6 +8,7 @@ foreign keys on.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 from pathlib import Path
 from typing import Any
@@ -36,21 +37,34 @@ def as_url(value: str) -> str:
     return f"sqlite:///{Path(value).expanduser().absolute()}"
 
 
-def side_file(url: str, suffix: str) -> Path:
+def side_file(url: str, suffix: str, owner: str | None = None) -> Path:
     """A local file that belongs to the database at ``url`` (the write spool, quarantine).
 
     Beside a SQLite file (``dms.db.spool``); for a server database, in the user's state
     folder, named after the URL without its password, so each database has its own.
+    ``owner`` (a robot id) makes it that robot's own (``dms.db.hall.spool``): robots that
+    share a database on one machine must not share a spool. A file of the same kind
+    left under the name without an owner (an older version's) is taken over by the
+    first owner that asks for it, so nothing it holds is lost.
     """
     parsed = make_url(as_url(url))
     database = parsed.database
     if parsed.get_backend_name() == "sqlite" and database and database != ":memory:":
-        return Path(f"{Path(database).expanduser().absolute()}.{suffix}")
-    shown = parsed.render_as_string(hide_password=True)
-    digest = hashlib.sha256(shown.encode()).hexdigest()[:16]
-    folder = Path(user_state_dir("dms", appauthor=False))
-    folder.mkdir(parents=True, exist_ok=True)
-    return folder / f"db-{digest}.{suffix}"
+        base = f"{Path(database).expanduser().absolute()}"
+    else:
+        shown = parsed.render_as_string(hide_password=True)
+        digest = hashlib.sha256(shown.encode()).hexdigest()[:16]
+        folder = Path(user_state_dir("dms", appauthor=False))
+        folder.mkdir(parents=True, exist_ok=True)
+        base = str(folder / f"db-{digest}")
+    shared = Path(f"{base}.{suffix}")
+    if owner is None:
+        return shared
+    own = Path(f"{base}.{owner}.{suffix}")
+    if shared.exists() and not own.exists():
+        with contextlib.suppress(OSError):  # another owner took it over first
+            shared.rename(own)
+    return own
 
 
 def make_engine(url: str, busy_timeout_s: float | None = None, **kwargs: Any) -> Engine:

@@ -122,10 +122,12 @@ class DaemonProcess:
         extra_args: tuple[str, ...] = (),
         robot_id: str = "mini",
         db: str | None = None,
+        session_questions: int = 0,
     ) -> None:
         """``extra_config`` is appended inside the ``[controller]`` table (or opens its own
         tables); ``extra_args`` go after ``dms run``'s flags (``--robot zenoh``,
-        ``--connect`` to a router). ``db``: a shared database (a fleet's PostgreSQL)."""
+        ``--connect`` to a router). ``db``: a shared database (a fleet's PostgreSQL);
+        ``session_questions``: the opening questions (none by default)."""
         self.port = port or free_port()
         self.extra_args = extra_args
         self.robot_id = robot_id
@@ -133,7 +135,7 @@ class DaemonProcess:
         self.config = tmp / "dms.toml"
         self.config.write_text(
             'seed = 3\n[inputs]\nstale_after_s = { "perception/user" = 30.0 }\n'
-            "[controller]\nsession_questions = 0\nquestion_every = 0\n"
+            f"[controller]\nsession_questions = {session_questions}\nquestion_every = 0\n"
             "feedback_probability = 0.0\n" + extra_config
         )
         self.proc: subprocess.Popen[str] | None = None

@@ -3,7 +3,7 @@
 A reminder is delivered while another process holds SQLite's write lock, so the
 delivery's database write cannot land; the daemon is killed (-9), the lock released and
 the daemon started again with the user present, within the reminder's grace time. The
-journal (``dms.db.agenda-spool``) held the delivery, the restart replays it before it
+journal (``dms.db.mini.agenda-spool``) held the delivery, the restart replays it before it
 computes what is due, and the reminder is not spoken again.
 """
 
@@ -67,7 +67,7 @@ def test_a_reminder_delivered_before_a_kill_9_is_not_delivered_again(tmp_path: P
         decisions.wait_for(_is_reminder, timeout=15)
         states.wait_for(lambda s: _ts(s) > fire + 1.5)  # the write was tried and failed
         daemon.kill()  # kill -9
-        journal = Path(f"{file}.agenda-spool").read_text()
+        journal = Path(f"{file}.mini.agenda-spool").read_text()
         assert '"outcome": "delivered"' in journal
         holder.release()
         holder = None
@@ -102,4 +102,4 @@ def test_a_reminder_delivered_before_a_kill_9_is_not_delivered_again(tmp_path: P
         ).fetchone()
     assert rows == [("delivered", 1)]
     assert next_fire is None
-    assert not Path(f"{file}.agenda-spool").exists()
+    assert not Path(f"{file}.mini.agenda-spool").exists()

@@ -123,6 +123,7 @@ def _fleet(tmp: Path) -> Iterator[tuple[Router, zenoh.Session, dict[str, DaemonP
                 extra_args=("--connect", f"tcp/127.0.0.1:{router.port}"),
                 robot_id=robot,
                 db=url,
+                session_questions=1,  # each robot asks Ann one opening question
             )
             daemons[robot] = daemon
             stack.callback(daemon.kill)
@@ -166,6 +167,35 @@ def _run_and_cancel(
     )
 
 
+def _answer_the_opening_question(
+    session: zenoh.Session, commands: Collector, robot: str, since: int
+) -> None:
+    """Ann answers the one question ``robot`` asks her (from command ``since`` on): the
+    first choice its screen shows, or her name."""
+    commands.wait_for(
+        lambda c: c["_robot"] == robot and c["channel"] == "speech" and "?" in str(c["args"]),
+        start=since,
+        timeout=30,
+    )
+    shown = [
+        c["args"]["choices"]
+        for c in commands.messages[since:]
+        if c["_robot"] == robot and c["channel"] == "screen" and c["args"].get("choices")
+    ]
+    choices = shown[-1] if shown else ["Ann"]
+    put(session, "perception/speech", {"text": str(choices[0]), "confidence": 0.95}, robot)
+
+
+def _answers_eventually(session: zenoh.Session, robot: str, count: int) -> list[str]:
+    """The questions Ann has answered, read at ``robot`` once ``count`` are stored."""
+    deadline = time.monotonic() + 30
+    while True:
+        answered = [a["question"] for a in _export(session, robot)["answers"]]
+        if len(answered) >= count or time.monotonic() > deadline:
+            return answered
+        time.sleep(0.1)
+
+
 def _export(session: zenoh.Session, robot: str) -> dict[str, Any]:
     replies = query(session, "users/ann", robot=robot)
     assert replies and replies[0][0], replies
@@ -181,6 +211,7 @@ def _wait_state(states: Collector, robot: str, predicate: Any, start: int = 0) -
 def test_a_care_home_fleet(tmp_path: Path) -> None:
     with _fleet(tmp_path) as (router, session, daemons, url):
         decisions = RobotCollector(session, "robots/*/dms/decision")
+        commands = RobotCollector(session, "robots/*/robot/command")
         states = Collector(session, "robots/*/dms/state")
         errors = Collector(session, "robots/*/dms/errors")
 
@@ -191,12 +222,21 @@ def test_a_care_home_fleet(tmp_path: Path) -> None:
                 left = visits[index - 1][0]
                 put(session, "perception/user", _ann(False), left)
                 _wait_state(states, left, lambda s: s["user"] is None)
+            since = commands.mark()
             put(session, "perception/user", _ann(True), robot)
             _wait_state(states, robot, lambda s: (s["user"] or {}).get("id") == "ann")
+            _answer_the_opening_question(session, commands, robot, since)
+            assert len(_answers_eventually(session, robot, index + 1)) == index + 1, (
+                f"Ann's answer at {robot} was not stored"
+            )
             _run_and_cancel(session, decisions, robot, activity)
             expected = [a for _, a in visits[: index + 1]]
-            seen = _asked_eventually(session, ROBOTS[(index + 1) % len(ROBOTS)], len(expected))
+            after = ROBOTS[(index + 1) % len(ROBOTS)]
+            seen = _asked_eventually(session, after, len(expected))
             assert seen == expected, f"what {robot} recorded is not there at the next robot"
+            answered = _answers_eventually(session, after, index + 1)
+            assert len(answered) == index + 1, f"{robot}'s answer is not there at {after}"
+            assert len(set(answered)) == len(answered), f"a question was asked again: {answered}"
         put(session, "perception/user", _ann(False), "lounge")
 
         # Two robots serve Ann at the same moment: every run is stored, no write refused.

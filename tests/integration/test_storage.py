@@ -120,7 +120,7 @@ def test_a_lock_held_20_s_by_another_process_costs_the_loop_no_tick(tmp_path: Pa
         assert "database is locked" in spooled["error"]
         assert daemon.terminate() == 0
     assert jokes_runs(db) == rounds + 1  # every write made under the lock landed after it
-    assert not Path(f"{db}.spool").exists()
+    assert not Path(f"{db}.mini.spool").exists()
 
 
 def test_kill_9_while_locked_then_restart_loses_nothing_acknowledged(tmp_path: Path) -> None:
@@ -136,7 +136,7 @@ def test_kill_9_while_locked_then_restart_loses_nothing_acknowledged(tmp_path: P
             jokes_round(session, decisions)
             pace(states)
         daemon.kill()
-    spooled = Path(f"{db}.spool").read_text().splitlines()
+    spooled = Path(f"{db}.mini.spool").read_text().splitlines()
     assert sum('"record_activity"' in line for line in spooled) >= 6
     holder.release()
     again = DaemonProcess(tmp_path)
@@ -148,7 +148,7 @@ def test_kill_9_while_locked_then_restart_loses_nothing_acknowledged(tmp_path: P
         again.kill()
         session.close()
     assert jokes_runs(db) >= 6
-    assert not Path(f"{db}.spool").exists()
+    assert not Path(f"{db}.mini.spool").exists()
 
 
 def test_a_dropped_table_quarantines_its_write_and_a_restart_is_refused(tmp_path: Path) -> None:
@@ -163,12 +163,12 @@ def test_a_dropped_table_quarantines_its_write_and_a_restart_is_refused(tmp_path
         jokes_round(session, decisions)
         refused = errors.wait_for(lambda e: "record_activity refused" in e["error"])
         assert "no such table: activity_runs" in refused["error"]
-        assert f"{db}.quarantine" in refused["error"]
+        assert f"{db}.mini.quarantine" in refused["error"]
         put(session, "perception/user", {"present": False})  # ends the session: another table
         states.wait_for(lambda s: s["user"] is None)
         assert daemon.terminate() == 0
     # jokes, and whatever the robot chose next and cancelled when ann left
-    entries = [json.loads(line) for line in Path(f"{db}.quarantine").read_text().splitlines()]
+    entries = [json.loads(line) for line in Path(f"{db}.mini.quarantine").read_text().splitlines()]
     assert {entry["op"] for entry in entries} == {"record_activity"}
     assert entries[0]["args"][:2] == ["ann", "jokes"] and "activity_runs" in entries[0]["error"]
     with sqlite3.connect(db) as connection:
