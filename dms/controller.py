@@ -251,6 +251,8 @@ class Controller:
         self._touches: list[tuple[str, str]] = []
         self._lazy_state: _Lazy[DmsState] | None = None
         self._robot_blocked = False
+        self._cleaning: set[ManagerName] = set()
+        """Managers whose cancelled activities still run their cleanup states."""
         self._unknown_since: datetime | None = None
         self._probe_at: datetime | None = None
         self._probe_wait_s = 0.0
@@ -286,8 +288,9 @@ class Controller:
             self._advance_dialog(now)
         if outcome.failed:
             self._drop_dialog(now)
-        with guard("cleanup"):
-            self._wind_down(now)
+        if self._cleaning:
+            with guard("cleanup"):
+                self._wind_down(now)
         if self.dialog is None:
             with guard("activity", self.current and self.current.name) as outcome:
                 self._tick_activities(now)
@@ -842,14 +845,18 @@ class Controller:
         quiet = not cleanup or limit <= 0 or running is self.suspended
         cleanup_s = None if quiet else limit
         reply = self.managers[running.manager].cancel(now, cleanup_s)
+        if cleanup_s is not None and self.managers[running.manager].winding_down:
+            self._cleaning.add(running.manager)
         self._decide("cancel", running.name, reason, running.chosen_by, detail, now)
         return reply
 
     def _wind_down(self, now: datetime) -> None:
         """Tick the cleanup states of cancelled activities (also while a dialog is open)."""
-        for manager in self.managers.values():
-            if manager.winding_down:
-                manager.wind_down(now)
+        for name in list(self._cleaning):
+            manager = self.managers[name]
+            manager.wind_down(now)
+            if not manager.winding_down:
+                self._cleaning.discard(name)
 
     def _tick_activities(self, now: datetime) -> None:
         running = self.current

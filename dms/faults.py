@@ -33,31 +33,27 @@ class _Seen:
     repeats: int = 0
 
 
-@dataclass(slots=True)
 class StepOutcome:
-    """What a guarded step tells its caller: whether it was cut short by a fault."""
+    """A guarded step, as its caller sees it: whether it was cut short by a fault.
 
-    failed: bool = False
+    It is its own context manager (:meth:`FaultBarrier.step`): one small object a step,
+    as the barrier runs nine times a tick."""
 
-
-class _Step:
-    """The context manager of :meth:`FaultBarrier.step`."""
-
-    __slots__ = ("_barrier", "_name", "_outcome", "_subject")
+    __slots__ = ("_barrier", "_name", "_subject", "failed")
 
     def __init__(self, barrier: FaultBarrier, name: str, subject: object) -> None:
         self._barrier, self._name, self._subject = barrier, name, subject
-        self._outcome = StepOutcome()
+        self.failed = False
 
     def __enter__(self) -> StepOutcome:
-        return self._outcome
+        return self
 
     def __exit__(
         self, kind: type[BaseException] | None, error: BaseException | None, _tb: object
     ) -> bool:
         if error is None or not isinstance(error, Exception):
             return False  # no fault; or KeyboardInterrupt, SystemExit: not ours to contain
-        self._outcome.failed = True
+        self.failed = True
         self._barrier._contain(self._name, self._subject, error)
         return True
 
@@ -85,14 +81,14 @@ class FaultBarrier:
         self.faults: list[Fault] = []
         """Every contained fault (bounded: the latest 100)."""
 
-    def step(self, name: str, subject: object = None) -> _Step:
+    def step(self, name: str, subject: object = None) -> StepOutcome:
         """Run the body of a ``with`` as step ``name`` working on ``subject``; contain faults.
 
         The outcome it yields says afterwards whether the body failed, so that the caller
         can put its state back in order. (A class, not a generator: it runs eight times a
         tick, and a generator-based context manager costs several times more.)
         """
-        return _Step(self, name, subject)
+        return StepOutcome(self, name, subject)
 
     def _contain(self, name: str, subject: object, error: Exception) -> None:
         what = printable(f"{type(error).__name__}: {error}", 300)

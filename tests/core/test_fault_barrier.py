@@ -126,6 +126,16 @@ def test_a_fault_in_any_step_is_reported_and_the_loop_goes_on(step: str) -> None
             if step == "choose":  # nothing runs: the robot must choose during the fault
                 sim.feed(keys.REQUEST, Request(action="cancel", by="app"))
                 sim.tick(urgent=True)
+            if step == "cleanup":  # a quiz cancelled mid-question cleans up during the fault
+                sim.feed(keys.REQUEST, Request(action="start", activity="quiz", by="app"))
+                sim.tick(urgent=True)
+                for _ in range(240):  # virtual half-seconds, until the first question
+                    state = sim.controller.build_state(sim.now()).activity
+                    if state is not None and "ASK" in state.state:
+                        break
+                    sim.run_for(0.5)
+                sim.feed(keys.REQUEST, Request(action="start", activity="jokes", by="app"))
+                sim.tick(urgent=True)
             if step == "dialog":  # the shoulder's "continue or stop?" is open during the fault
                 sim.feed(keys.PERCEPTION_TOUCH, Touch(part="right_shoulder", kind="tap"))
                 sim.tick(urgent=True)
