@@ -18,6 +18,7 @@ from typing import Any
 
 from activities import BehaviorError, BehaviorLibrary, decision_warnings
 from agenda import Agenda, AgendaError
+from agenda.service import POLL_S
 from dms.config import Settings
 from dms.controller import Controller, ControllerDeps
 from dms.inputs import InputBoard
@@ -31,6 +32,8 @@ from memory import ActivityChooser, PreferenceModel, ProfileError, ProfileStore,
 from memory.db import default_url
 from motivation import MotivationConfigError, MotivationModel, load_config
 
+AGENDA_POLL_S = POLL_S
+"""How often a robot's agenda looks for items added elsewhere (another robot, the CLI)."""
 WRITER_BUSY_TIMEOUT_S = 1.0
 """SQLite lock wait of the daemon's store writer: past it the writes are spooled."""
 
@@ -100,13 +103,16 @@ def build_stack(
     robot_state: Callable[[], dict[str, Any]] = dict,
     retrain: bool = True,
     background_io: bool = True,
+    agenda_poll_s: float | None = AGENDA_POLL_S,
 ) -> Stack:
     """Open everything ``settings`` names; raise DmsError with one line if anything is wrong.
 
     ``retrain=False`` trains the preference model here, once, and keeps it (the simulator:
     retraining runs in a thread, and a seeded run must not depend on thread timing).
     With ``retrain=True`` (the daemon) the chooser starts on the seed model and
-    :meth:`Stack.when_ready` trains from the store in the background.
+    :meth:`Stack.when_ready` trains from the store in the background. ``agenda_poll_s``:
+    how often the agenda looks for items added elsewhere (None: never, for a database
+    nobody else writes, such as a simulation's own).
     ``background_io=False`` runs the store's and the agenda's database work inline, not on
     their threads (the simulator, for the same reason).
     """
@@ -161,7 +167,11 @@ def build_stack(
 
         try:
             agenda = Agenda(
-                url, user_exists=user_exists, background=background_io, claimer=settings.robot_id
+                url,
+                user_exists=user_exists,
+                background=background_io,
+                claimer=settings.robot_id,
+                poll_s=agenda_poll_s,
             )
         except AgendaError as error:
             profiles.close()

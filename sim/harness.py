@@ -74,18 +74,6 @@ def _no_fsync(engine: Any) -> None:
     engine.dispose()  # connections already pooled reopen with it
 
 
-def _no_agenda_polls(agenda: Any) -> None:
-    """No polls for agenda items added elsewhere, on a database the simulation made
-    itself: nobody else writes it, and a poll (every 10 s of the virtual clock) read the
-    database on the tick, a quarter of a long-term run's time. The items, their cursors
-    and what falls due are the agenda's own either way: the decisions are the same.
-
-    ``Agenda(poll_s=None)`` says this; :func:`dms.assembly.build_stack` has no way to
-    pass it yet, so the simulation sets what that argument sets.
-    """
-    agenda._poll_us = None
-
-
 class Simulation:
     """One robot's controller stack on a virtual clock."""
 
@@ -99,7 +87,7 @@ class Simulation:
         with_memory: bool = True,
         launch_delay_s: tuple[float, float] = (0.0, 0.0),
     ) -> None:
-        from dms.assembly import build_stack
+        from dms.assembly import AGENDA_POLL_S, build_stack
         from sim.robot import SimRobot
 
         settings = settings or Settings()
@@ -155,14 +143,16 @@ class Simulation:
                 with_memory=with_memory,
                 retrain=False,
                 background_io=False,
+                # a database the simulation made itself: nobody else adds items to it, and
+                # a poll every 10 s of the virtual clock read it on the tick (a quarter of
+                # a long-term run's time); the decisions are the same either way
+                agenda_poll_s=None if self._tmp is not None else AGENDA_POLL_S,
             )
         except BaseException:
             self._cleanup_tmp()
             raise
         if self._tmp is not None and self.stack.store is not None:
             _no_fsync(self.stack.store.engine)
-        if self._tmp is not None and self.stack.agenda is not None:
-            _no_agenda_polls(self.stack.agenda)
         self.controller = self.stack.controller
 
     # ------------------------------------------------------------ plumbing
