@@ -13,7 +13,7 @@ import pytest
 
 from activities import Activity, ActivityStatus, BehaviorLibrary
 from dms.kernel.activity_names import ManagerName
-from managers.base import ManagerStatus
+from managers.base import Manager, ManagerStatus
 from managers.groups import make_managers
 from tests.activities.conftest import Bench
 
@@ -125,15 +125,21 @@ def test_a_cleanup_that_overruns_its_limit_is_cut_off(make: Any) -> None:
     assert timedelta(seconds=5) <= bench.now - asked <= timedelta(seconds=6)
 
 
-def test_a_manager_is_free_at_once_while_the_old_activity_cleans_up(
-    shipped: BehaviorLibrary,
-) -> None:
+def _quiz_asking(shipped: BehaviorLibrary) -> tuple[Bench, Manager, Activity]:
+    """The entertainment manager running a quiz that is asking its first question."""
     bench = Bench(shipped)
     manager = make_managers(shipped)[ManagerName.ENTERTAINMENT]
     assert manager.start("quiz", bench.context("quiz"), bench.now).status is ManagerStatus.RUNNING
     quiz = manager.activity
     assert quiz is not None
     bench.run_until(quiz, lambda: quiz.state_path.endswith("ASK"))
+    return bench, manager, quiz
+
+
+def test_a_manager_is_free_at_once_while_the_old_activity_cleans_up(
+    shipped: BehaviorLibrary,
+) -> None:
+    bench, manager, quiz = _quiz_asking(shipped)
     reply = manager.cancel(bench.now, cleanup_s=10)
     assert reply.status is ManagerStatus.CANCELLED and manager.activity is None
     assert manager.winding_down == (quiz,)
@@ -152,24 +158,14 @@ def test_a_manager_is_free_at_once_while_the_old_activity_cleans_up(
 
 
 def test_starting_the_same_activity_again_cuts_its_cleanup(shipped: BehaviorLibrary) -> None:
-    bench = Bench(shipped)
-    manager = make_managers(shipped)[ManagerName.ENTERTAINMENT]
-    manager.start("quiz", bench.context("quiz"), bench.now)
-    old = manager.activity
-    assert old is not None
-    bench.run_until(old, lambda: old.state_path.endswith("ASK"))
+    bench, manager, old = _quiz_asking(shipped)
     manager.cancel(bench.now, cleanup_s=10)
     manager.start("quiz", bench.context("quiz"), bench.now)
     assert old.status is ActivityStatus.CANCELLED and manager.winding_down == ()
 
 
 def test_shutdown_cuts_every_cleanup(shipped: BehaviorLibrary) -> None:
-    bench = Bench(shipped)
-    manager = make_managers(shipped)[ManagerName.ENTERTAINMENT]
-    manager.start("quiz", bench.context("quiz"), bench.now)
-    quiz = manager.activity
-    assert quiz is not None
-    bench.run_until(quiz, lambda: quiz.state_path.endswith("ASK"))
+    bench, manager, quiz = _quiz_asking(shipped)
     manager.cancel(bench.now, cleanup_s=10)
     manager.stop_winding_down(bench.now)
     assert manager.winding_down == () and quiz.status is ActivityStatus.CANCELLED
