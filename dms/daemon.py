@@ -372,8 +372,13 @@ class Daemon:
         self.bus.publish(keys.DMS_STATE, self._stamped(record.state).model_dump(mode="json"))
 
     def _stamped(self, state: DmsState) -> DmsState:
-        """The controller's state with what only the daemon knows (its reloads)."""
-        return state.model_copy(update={"reloads": self.reloader.reloads})
+        """The controller's state with what only the daemon knows (its reloads, the
+        writes not stored yet)."""
+        profiles = self.stack.controller.deps.profiles
+        pending = profiles.pending_writes if profiles is not None else 0
+        return state.model_copy(
+            update={"reloads": self.reloader.reloads, "pending_writes": pending}
+        )
 
     def _echo(self, line: str) -> None:
         """One console line; a closed stdout (``| head``) turns printing off, never the daemon."""

@@ -219,6 +219,11 @@ class DmsState(Outbound):
     reloads: int = 0
     """Reloads of the rules and behaviors finished since the start (SIGHUP, ``reload_rules``):
     a client that asked for one knows it is in force once this has grown."""
+    pending_writes: int = 0
+    """Profile writes the daemon acknowledged that are not in the database yet (queued,
+    being written, or spooled during an outage): 0 once a state published after an
+    action shows it, what the action wrote is stored (another robot of the fleet reads
+    it); a number that stays up says the database is away."""
 
 
 DecisionAction = Literal["start", "pause", "resume", "cancel", "complete", "fail", "ask"]

@@ -257,3 +257,59 @@ def wait_subscribed(session: zenoh.Session, key: str, timeout: float = READY_TIM
     if getattr(current, "matching", current):
         matched.set()
     assert matched.wait(timeout), f"nothing subscribed to {key} within {timeout} s"
+
+
+class StderrLines:
+    """A process's stderr read line by line on a thread: wait for a line, never poll.
+
+    Also keeps every line after the process ended (``text``), for failure messages."""
+
+    def __init__(self, process: subprocess.Popen[str]) -> None:
+        assert process.stderr is not None, "start the process with stderr=subprocess.PIPE"
+        self.process = process
+        self.lines: list[str] = []
+        self._cond = threading.Condition()
+        self._ended = False
+        self._thread = threading.Thread(target=self._read, args=(process.stderr,), daemon=True)
+        self._thread.start()
+
+    def _read(self, stream: Iterable[str]) -> None:
+        for line in stream:
+            with self._cond:
+                self.lines.append(line.rstrip("\n"))
+                self._cond.notify_all()
+        with self._cond:
+            self._ended = True
+            self._cond.notify_all()
+
+    def mark(self) -> int:
+        with self._cond:
+            return len(self.lines)
+
+    def wait_for(
+        self,
+        wanted: str | Callable[[str], bool],
+        timeout: float = READY_TIMEOUT_S,
+        start: int = 0,
+    ) -> str:
+        """The first line from ``start`` on that holds ``wanted`` (or satisfies it)."""
+        match = (lambda line: wanted in line) if isinstance(wanted, str) else wanted
+        found: list[str] = []
+
+        def ready() -> bool:
+            found[:] = [line for line in self.lines[start:] if match(line)][:1]
+            return bool(found) or self._ended
+
+        with self._cond:
+            self._cond.wait_for(ready, timeout)
+            if not found:
+                end = "the process ended" if self._ended else f"not within {timeout} s"
+                raise AssertionError(f"no such line on stderr ({end}):\n" + self.text())
+            return found[0]
+
+    def text(self) -> str:
+        """Every line so far (after the process ended: all of them)."""
+        if self.process.poll() is not None:
+            self._thread.join(10.0)
+        with self._cond:
+            return "\n".join(self.lines)

@@ -25,7 +25,13 @@ from typing import Any
 import pytest
 import zenoh
 
-from tests.integration.harness import READY_TIMEOUT_S, client_session, free_port, wait_token
+from tests.integration.harness import (
+    READY_TIMEOUT_S,
+    StderrLines,
+    client_session,
+    free_port,
+    wait_token,
+)
 
 pytestmark = pytest.mark.integration
 
@@ -40,14 +46,12 @@ CONFIG = (
 
 
 class Daemon:
-    """``dms run`` with a given environment, its stderr in a file read line by line."""
+    """``dms run`` with a given environment, its stderr read line by line."""
 
     def __init__(self, tmp: Path, port: int, args: tuple[str, ...], env: dict[str, str]) -> None:
         self.port = port
         config = tmp / "dms.toml"
         config.write_text(CONFIG)
-        self.err_path = tmp / "daemon.err"
-        self._err = self.err_path.open("w")
         clean = {k: v for k, v in os.environ.items() if not k.startswith(("DMS_", "NOTIFY_"))}
         self.proc = subprocess.Popen(
             [
@@ -63,27 +67,20 @@ class Daemon:
                 *args,
             ],
             stdout=subprocess.DEVNULL,
-            stderr=self._err,
+            stderr=subprocess.PIPE,
             text=True,
             env={**clean, "PYTHONUNBUFFERED": "1", **env},
         )
+        self.stderr = StderrLines(self.proc)
 
     def lines(self) -> list[str]:
-        return self.err_path.read_text().splitlines()
+        return self.stderr.text().splitlines()
 
     def wait_line(
         self, predicate: Callable[[str], bool], timeout: float = 30.0, start: int = 0
     ) -> str:
-        """The first stderr line from index ``start`` on that satisfies ``predicate``
-        (polled: the file is the daemon's real stderr)."""
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            for line in self.lines()[start:]:
-                if predicate(line):
-                    return line
-            assert self.proc.poll() is None, "\n".join(self.lines()[-20:])
-            time.sleep(0.05)
-        raise AssertionError(f"no such log line within {timeout}s:\n" + "\n".join(self.lines()))
+        """The first stderr line from index ``start`` on that satisfies ``predicate``."""
+        return self.stderr.wait_for(predicate, timeout, start)
 
     def stop(self) -> int:
         if self.proc.poll() is None:
@@ -91,13 +88,12 @@ class Daemon:
         try:
             return self.proc.wait(30)
         finally:
-            self._err.close()
+            self.stderr.text()  # every line read
 
     def kill(self) -> None:
         if self.proc.poll() is None:
             self.proc.kill()
             self.proc.wait(10)
-        self._err.close()
 
 
 @contextmanager

@@ -13,14 +13,20 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 from pathlib import Path
 
 import pytest
 from mcap.reader import make_reader
 
 from activities.library import BEHAVIORS_DIR
-from tests.integration.harness import Collector, free_port, put, running_daemon, wait_subscribed
+from tests.integration.harness import (
+    Collector,
+    StderrLines,
+    free_port,
+    put,
+    running_daemon,
+    wait_subscribed,
+)
 
 pytestmark = pytest.mark.integration
 
@@ -32,34 +38,6 @@ PROBE = "robots/mini/test/record-probe"
 def dms(*args: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
     clean = {k: v for k, v in os.environ.items() if not k.startswith("DMS_")}
     return subprocess.run([*DMS, *args], capture_output=True, text=True, timeout=timeout, env=clean)
-
-
-class StderrLines:
-    """A process's stderr, read line by line on a thread; wait for a line."""
-
-    def __init__(self, process: subprocess.Popen[str]) -> None:
-        self.lines: list[str] = []
-        self._cond = threading.Condition()
-        assert process.stderr is not None
-        self._stream = process.stderr
-        self._thread = threading.Thread(target=self._read, daemon=True)
-        self._thread.start()
-
-    def _read(self) -> None:
-        for line in self._stream:
-            with self._cond:
-                self.lines.append(line)
-                self._cond.notify_all()
-
-    def wait_for(self, text: str, timeout: float = 60.0) -> None:
-        with self._cond:
-            found = self._cond.wait_for(lambda: any(text in line for line in self.lines), timeout)
-            assert found, f"no {text!r} on stderr within {timeout}s: {self.lines}"
-
-    def all(self) -> str:
-        self._thread.join(10.0)
-        with self._cond:
-            return "".join(self.lines)
 
 
 def test_record_info_replay_round_trip_with_no_flags(tmp_path: Path) -> None:
@@ -104,7 +82,7 @@ def test_record_info_replay_round_trip_with_no_flags(tmp_path: Path) -> None:
             states.wait_for(lambda s: s["tick"] >= left["tick"] + 2)
             recorder.send_signal(signal.SIGINT)
             recorder.wait(30.0)
-            err = lines.all()
+            err = lines.text()
         finally:
             if recorder.poll() is None:
                 recorder.kill()

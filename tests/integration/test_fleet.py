@@ -30,9 +30,9 @@ import pytest
 import zenoh
 
 from tests.integration.harness import (
-    READY_TIMEOUT_S,
     Collector,
     DaemonProcess,
+    StderrLines,
     client_session,
     free_port,
     put,
@@ -69,37 +69,26 @@ def _dms(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedP
 
 
 class Router:
-    """``dms router`` in a subprocess on one loopback port."""
+    """``dms router`` in a subprocess on one loopback port; started again on the same
+    port after a kill. Ready when it says it listens."""
 
-    def __init__(self, port: int, log: Path) -> None:
+    def __init__(self, port: int) -> None:
         self.port = port
-        self.log = log
         self.proc: subprocess.Popen[str] | None = None
 
     def start(self) -> None:
-        self._out = self.log.open("a")
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "dms.cli", "router", "--listen", f"tcp/127.0.0.1:{self.port}"],
-            stdout=self._out,
-            stderr=subprocess.STDOUT,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
             text=True,
         )
+        StderrLines(self.proc).wait_for("listening on")
 
     def kill(self) -> None:
         if self.proc is not None and self.proc.poll() is None:
             self.proc.kill()
             self.proc.wait(10)
-        if self.proc is not None:
-            self._out.close()
-
-
-def _wait_router(session: zenoh.Session, router: Router) -> None:
-    """Until the session has a link to a router (the condition, re-read every 50 ms)."""
-    deadline = time.monotonic() + READY_TIMEOUT_S
-    while not list(session.info.routers_zid()):
-        assert router.proc is not None and router.proc.poll() is None, router.log.read_text()
-        assert time.monotonic() < deadline, f"no router link:\n{router.log.read_text()}"
-        time.sleep(0.05)
 
 
 @contextmanager
@@ -107,12 +96,11 @@ def _fleet(tmp: Path) -> Iterator[tuple[Router, zenoh.Session, dict[str, DaemonP
     with fresh_schema("fleet") as url, ExitStack() as stack:
         upgraded = _dms("db", "upgrade", "--db", url)
         assert upgraded.returncode == 0, upgraded.stderr
-        router = Router(free_port(), tmp / "router.log")
+        router = Router(free_port())
         router.start()
         stack.callback(router.kill)
         session = client_session(router.port)
         stack.callback(session.close)
-        _wait_router(session, router)
         daemons: dict[str, DaemonProcess] = {}
         for robot in ROBOTS:
             folder = tmp / robot
@@ -150,8 +138,8 @@ class RobotCollector(Collector):
 
 def _run_and_cancel(
     session: zenoh.Session, decisions: Collector, robot: str, activity: str
-) -> None:
-    """Ann asks ``robot`` for ``activity``, then stops it herself."""
+) -> dict[str, Any]:
+    """Ann asks ``robot`` for ``activity``, then stops it herself; the cancel decision."""
     mark = decisions.mark()
     put(session, "request", {"action": "start", "activity": activity, "by": "ann"}, robot)
     decisions.wait_for(
@@ -160,7 +148,7 @@ def _run_and_cancel(
         timeout=30,
     )
     put(session, "request", {"action": "cancel", "activity": activity, "by": "ann"}, robot)
-    decisions.wait_for(
+    return decisions.wait_for(
         lambda d: d["_robot"] == robot and d["action"] == "cancel" and d["activity"] == activity,
         start=mark,
         timeout=30,
@@ -168,10 +156,11 @@ def _run_and_cancel(
 
 
 def _answer_the_opening_question(
-    session: zenoh.Session, commands: Collector, robot: str, since: int
-) -> None:
+    session: zenoh.Session, decisions: Collector, commands: Collector, robot: str, since: int
+) -> dict[str, Any]:
     """Ann answers the one question ``robot`` asks her (from command ``since`` on): the
-    first choice its screen shows, or her name."""
+    first choice its screen shows, or her name. The question closed, the robot chooses
+    for her: that decision (the answer was taken in its tick or before)."""
     commands.wait_for(
         lambda c: c["_robot"] == robot and c["channel"] == "speech" and "?" in str(c["args"]),
         start=since,
@@ -183,17 +172,21 @@ def _answer_the_opening_question(
         if c["_robot"] == robot and c["channel"] == "screen" and c["args"].get("choices")
     ]
     choices = shown[-1] if shown else ["Ann"]
+    mark = decisions.mark()
     put(session, "perception/speech", {"text": str(choices[0]), "confidence": 0.95}, robot)
+    return decisions.wait_for(
+        lambda d: d["_robot"] == robot and d["action"] == "start", start=mark, timeout=30
+    )
 
 
-def _answers_eventually(session: zenoh.Session, robot: str, count: int) -> list[str]:
-    """The questions Ann has answered, read at ``robot`` once ``count`` are stored."""
-    deadline = time.monotonic() + 30
-    while True:
-        answered = [a["question"] for a in _export(session, robot)["answers"]]
-        if len(answered) >= count or time.monotonic() > deadline:
-            return answered
-        time.sleep(0.1)
+def _stored(states: Collector, robot: str, after: dict[str, Any]) -> None:
+    """Until ``robot`` publishes, after decision ``after``'s tick, a state with no write
+    pending: what that tick and the ones before it wrote is in the database."""
+    _wait_state(states, robot, lambda s: s["tick"] > after["tick"] and s["pending_writes"] == 0)
+
+
+def _answered(export: dict[str, Any]) -> list[str]:
+    return [a["question"] for a in export["answers"]]
 
 
 def _export(session: zenoh.Session, robot: str) -> dict[str, Any]:
@@ -225,16 +218,18 @@ def test_a_care_home_fleet(tmp_path: Path) -> None:
             since = commands.mark()
             put(session, "perception/user", _ann(True), robot)
             _wait_state(states, robot, lambda s: (s["user"] or {}).get("id") == "ann")
-            _answer_the_opening_question(session, commands, robot, since)
-            assert len(_answers_eventually(session, robot, index + 1)) == index + 1, (
+            chosen = _answer_the_opening_question(session, decisions, commands, robot, since)
+            _stored(states, robot, chosen)
+            assert len(_answered(_export(session, robot))) == index + 1, (
                 f"Ann's answer at {robot} was not stored"
             )
-            _run_and_cancel(session, decisions, robot, activity)
-            expected = [a for _, a in visits[: index + 1]]
+            _stored(states, robot, _run_and_cancel(session, decisions, robot, activity))
             after = ROBOTS[(index + 1) % len(ROBOTS)]
-            seen = _asked_eventually(session, after, len(expected))
-            assert seen == expected, f"what {robot} recorded is not there at the next robot"
-            answered = _answers_eventually(session, after, index + 1)
+            seen = _export(session, after)
+            assert _asked(seen) == [a for _, a in visits[: index + 1]], (
+                f"what {robot} recorded is not there at the next robot"
+            )
+            answered = _answered(seen)
             assert len(answered) == index + 1, f"{robot}'s answer is not there at {after}"
             assert len(set(answered)) == len(answered), f"a question was asked again: {answered}"
         put(session, "perception/user", _ann(False), "lounge")
@@ -246,9 +241,11 @@ def test_a_care_home_fleet(tmp_path: Path) -> None:
         before = _asked(_export(session, "lounge"))
         runs = 4
 
+        last: dict[str, dict[str, Any]] = {}
+
         def serve(robot: str, activity: str) -> None:
             for _ in range(runs):
-                _run_and_cancel(session, decisions, robot, activity)
+                last[robot] = _run_and_cancel(session, decisions, robot, activity)
 
         workers = [
             threading.Thread(target=serve, args=pair)
@@ -258,8 +255,9 @@ def test_a_care_home_fleet(tmp_path: Path) -> None:
             worker.start()
         for worker in workers:
             worker.join()
-        everything = _asked_eventually(session, "lounge", len(before) + 2 * runs)
-        added_runs = everything[len(before) :]
+        for robot, cancel in last.items():
+            _stored(states, robot, cancel)
+        added_runs = _asked(_export(session, "lounge"))[len(before) :]
         assert sorted(added_runs) == ["jokes"] * runs + ["news"] * runs, (
             f"a concurrent write was lost: {added_runs}"
         )
@@ -297,7 +295,6 @@ def test_a_care_home_fleet(tmp_path: Path) -> None:
         # The router is killed and restarted mid-session: every daemon is heard again.
         router.kill()
         router.start()
-        _wait_router(session, router)
         restarted = states.mark()
         for robot in ROBOTS:
             _wait_state(states, robot, lambda s: True, start=restarted)
@@ -328,17 +325,6 @@ def test_a_care_home_fleet(tmp_path: Path) -> None:
 
 def _time(state: dict[str, Any]) -> float:
     return datetime.fromisoformat(str(state["time"]).replace("Z", "+00:00")).timestamp()
-
-
-def _asked_eventually(session: zenoh.Session, robot: str, count: int) -> list[str]:
-    """``_asked`` at ``robot`` once ``count`` runs are stored (the writer thread stores a
-    run just after its decision), or what is there after 30 s."""
-    deadline = time.monotonic() + 30
-    while True:
-        asked = _asked(_export(session, robot))
-        if len(asked) >= count or time.monotonic() > deadline:
-            return asked
-        time.sleep(0.1)
 
 
 def _asked(export: dict[str, Any]) -> list[str]:

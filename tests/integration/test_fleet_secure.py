@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-import time
+import threading
 from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
@@ -123,13 +123,28 @@ def _secured_fleet(tmp: Path) -> Iterator[tuple[zenoh.Session, zenoh.Session]]:
 
 def test_the_router_speaks_tls_and_keeps_personal_data_from_apps(tmp_path: Path) -> None:
     with _secured_fleet(tmp_path) as (admin, app):
+        states: list[dict[str, Any]] = []
+        seen = threading.Condition()
+
+        def on_state(sample: zenoh.Sample) -> None:
+            with seen:
+                states.append(json.loads(sample.payload.to_bytes()))
+                seen.notify_all()
+
+        watch = admin.declare_subscriber("robots/hall/dms/state", on_state)
         admin.put("robots/hall/perception/user", json.dumps(
             {"present": True, "user_id": "ann", "ready": True, "engagement": 0.8}
         ))  # fmt: skip
-        deadline = time.monotonic() + 30
-        while not _query(admin, "robots/hall/users/ann"):  # her profile, once stored
-            assert time.monotonic() < deadline, "the admin never read Ann's profile"
-            time.sleep(0.1)
+        with seen:  # her session began and her profile is stored
+            assert seen.wait_for(
+                lambda: any(
+                    (s["user"] or {}).get("id") == "ann" and s["pending_writes"] == 0
+                    for s in states
+                ),
+                READY_TIMEOUT_S,
+            ), states[-3:]
+        watch.undeclare()
+        assert _query(admin, "robots/hall/users/ann"), "the admin reads Ann's profile"
         assert _query(app, "robots/hall/dms/state"), "the app reads the state over TLS"
         assert _query(app, "robots/hall/users/ann") == [], "the router denies it the profile"
         assert _query(app, "robots/hall/users/*") == []

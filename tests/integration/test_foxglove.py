@@ -16,7 +16,6 @@ import socket
 import struct
 import subprocess
 import sys
-import threading
 import time
 from datetime import datetime
 from pathlib import Path
@@ -25,7 +24,7 @@ from typing import Any
 import pytest
 import websockets
 
-from tests.integration.harness import READY_TIMEOUT_S, free_port, put, running_daemon
+from tests.integration.harness import StderrLines, free_port, put, running_daemon
 
 pytestmark = pytest.mark.integration
 
@@ -53,21 +52,10 @@ class Bridge:
             text=True,
             env=dict(os.environ, PYTHONUNBUFFERED="1"),
         )
-        self.lines: list[str] = []
-        self._ready = threading.Event()
-        threading.Thread(target=self._read, daemon=True).start()
-
-    def _read(self) -> None:
-        assert self.proc.stderr is not None
-        for line in self.proc.stderr:
-            self.lines.append(line)
-            if "ws://" in line:
-                self._ready.set()
-        self._ready.set()  # ended: wait() reports it
+        self.stderr = StderrLines(self.proc)
 
     def wait_ready(self) -> None:
-        assert self._ready.wait(READY_TIMEOUT_S), "the bridge never said where it serves"
-        assert self.proc.poll() is None, "".join(self.lines)
+        self.stderr.wait_for("ws://")
 
     def stop(self) -> int:
         self.proc.terminate()
