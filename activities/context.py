@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 from dms.kernel.expression import ExpressionArbiter
+from dms.kernel.frames import FrameStore
 
 
 class RuleResult(Protocol):
@@ -46,3 +47,8 @@ class ActivityContext:
     rng: random.Random = field(default_factory=lambda: random.Random(0))
     set_user_param: Callable[[str, Any], None] = _ignore
     """Stores a value in the present user's profile (the ``set_param`` block)."""
+    frames: FrameStore | None = None
+    """Where things are (``user``, ``face:<id>``, ``object:<name>``, the body): what
+    ``look_at``, ``point_at`` and ``attend`` aim at. None: the robot knows no frames."""
+    joints: Mapping[str, float] = field(default_factory=dict)
+    """The robot's joint state now (radians), kept current by the daemon."""

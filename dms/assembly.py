@@ -25,9 +25,10 @@ from dms.inputs import InputBoard
 from dms.kernel.errors import ConfigError
 from dms.kernel.expression import ExpressionArbiter
 from dms.kernel.messages import RobotCommand
-from dms.kernel.ports import RobotPort
+from dms.kernel.ports import JointReporter, RobotPort
 from dms.profiles import ProfileService
 from dms.rules import LiveRules, RulesError
+from dms.scene import Scene
 from memory import ActivityChooser, PreferenceModel, ProfileError, ProfileStore, QuestionBank
 from memory.db import default_url
 from motivation import MotivationConfigError, MotivationModel, load_config
@@ -196,6 +197,10 @@ def build_stack(
         questions=questions,
         report_error=report_error,
         robot_state=robot_state,
+        scene=Scene(
+            settings.inputs.stale_after_s,
+            joints=robot.joints if isinstance(robot, JointReporter) else None,
+        ),
     )
     controller = Controller(
         deps, inputs, settings.controller, settings.robot_id, rng, timezone_hour=hour

@@ -192,13 +192,19 @@ class ZenohBus:
         for key, handler in queries.items():
             expr = self._key(key + "**") if key.endswith("/") else self._key(key)
             self._entities.append(session.declare_queryable(expr, self._serve(handler)))
-        for key in (keys.DMS_STATE, keys.DMS_DECISION, keys.DMS_ERRORS, keys.ROBOT_COMMAND):
-            # The state comes again next tick, so a congested link may drop one; a decision,
-            # a rejection or a robot command is said once, so it waits for room instead
-            # (Zenoh closes a link blocked for longer than its block timeout).
+        for key in (
+            keys.DMS_STATE,
+            keys.DMS_DECISION,
+            keys.DMS_ERRORS,
+            keys.ROBOT_COMMAND,
+            keys.ROBOT_JOINTS,
+        ):
+            # The state and the joints come again next tick, so a congested link may drop
+            # one; a decision, a rejection or a robot command is said once, so it waits for
+            # room instead (Zenoh closes a link blocked for longer than its block timeout).
             congestion = (
                 zenoh.CongestionControl.DROP
-                if key == keys.DMS_STATE
+                if key in (keys.DMS_STATE, keys.ROBOT_JOINTS)
                 else zenoh.CongestionControl.BLOCK
             )
             self._publishers[key] = session.declare_publisher(

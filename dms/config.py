@@ -40,7 +40,11 @@ class ZenohSettings(_Section):
     config_file: Path | None = None
 
 
-_STALE_AFTER_S: dict[str, float | None] = {"perception/user": 5.0}
+_STALE_AFTER_S: dict[str, float | None] = {
+    "perception/user": 5.0,
+    "perception/objects": 5.0,
+    "robot/joints": 5.0,
+}
 _USER_INITIATIVE: dict[Literal["high", "moderate", "low", "unknown"], float] = {
     "high": 0.8,
     "moderate": 0.5,

@@ -71,6 +71,7 @@ from dms.kernel.messages import (
 from dms.kernel.session_metrics import SessionAccount
 from dms.profiles import ProfileService
 from dms.rules import LiveRules
+from dms.scene import Scene
 from managers import Manager, ManagerReply, ManagerStatus, make_managers
 from memory import ActivityChooser, Profile, Question, QuestionBank
 from motivation import MotivationModel, MotivationState, Percepts, Stimuli, simulate
@@ -175,6 +176,8 @@ class ControllerDeps:
     questions: QuestionBank | None = None
     report_error: Callable[[str, str], None] = lambda key, error: None
     robot_state: Callable[[], Mapping[str, Any]] = dict
+    scene: Scene | None = None
+    """The frames behaviors aim at (the user's face, objects, the body); None: no gaze."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -277,6 +280,8 @@ class Controller:
         with guard("motivation", self._user):
             self._step_motivation(snapshot, now)
         with guard("robot"):
+            if self.deps.scene is not None:
+                self.deps.scene.update(snapshot.values, now)
             self.deps.expression.update(now)
             self._robot_blocked = self._robot_unreachable(now)
         if self.deps.profiles is not None:
@@ -754,6 +759,8 @@ class Controller:
             rules=self.deps.rules,
             rng=self.rng,
             set_user_param=self._set_user_param,
+            frames=self.deps.scene.frames if self.deps.scene is not None else None,
+            joints=self.deps.scene.joints if self.deps.scene is not None else {},
         )
 
     def _set_user_param(self, name: str, value: Any) -> None:

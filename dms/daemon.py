@@ -41,7 +41,7 @@ from dms.kernel.messages import (
     RobotCommand,
     RobotFeedback,
 )
-from dms.kernel.ports import RobotPort
+from dms.kernel.ports import JointReporter, RobotPort
 from dms.local_bus import InMemoryBus
 from dms.logs import setup_logging
 from dms.notify import Notifier
@@ -180,6 +180,8 @@ class Daemon:
             robot = sim_robot(settings.seed or 0)
         else:
             raise ConfigError(f"robot = {settings.robot!r} needs an in-process robot: use dms run")
+        self.body: JointReporter | None = robot if isinstance(robot, JointReporter) else None
+        """The in-process robot's joints, published on ``robot/joints`` each tick."""
         self.stack: Stack = build_stack(
             settings,
             robot,
@@ -370,6 +372,10 @@ class Daemon:
             self._echo(line)
         self._said.clear()
         self.bus.publish(keys.DMS_STATE, self._stamped(record.state).model_dump(mode="json"))
+        if self.body is not None:
+            now = self.clock.now()
+            joints = {"positions": self.body.joints(now), "time": iso(now)}
+            self.bus.publish(keys.ROBOT_JOINTS, joints)
 
     def _stamped(self, state: DmsState) -> DmsState:
         """The controller's state with what only the daemon knows (its reloads, the

@@ -72,6 +72,7 @@ def _first_error(error: ValidationError) -> str:
 
 
 _EVENT_KEYS = frozenset(keys.EVENT_INPUTS)
+_OPTIONAL_KEYS = frozenset(keys.OPTIONAL_INPUTS)
 
 
 @dataclass(slots=True)
@@ -119,6 +120,8 @@ class InputBoard:
     def __init__(self, stale_after_s: Mapping[str, float | None] | None = None) -> None:
         defaults: dict[str, float | None] = {
             keys.PERCEPTION_USER: 5.0,
+            keys.PERCEPTION_OBJECTS: 5.0,
+            keys.ROBOT_JOINTS: 5.0,
             keys.PARAMS_ROBOT: None,
             keys.PARAMS_ENV: None,
         }
@@ -193,6 +196,8 @@ class InputBoard:
                         continue  # an event input nobody has declared or used: not worth a line
                     status[key] = "missing" if slot.token_seen and not slot.token_alive else "ok"
                     continue
+                if key in _OPTIONAL_KEYS and not slot.token_seen and slot.updated is None:
+                    continue  # an optional input (objects, joints) no module provides
                 state = status[key] = self._status(key, slot, monotonic_now)
                 if state == "ok" and slot.value is not None:  # a state input (INPUT_KEYS)
                     values[key] = slot.value

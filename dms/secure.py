@@ -111,13 +111,16 @@ def _app() -> tuple[Grant, ...]:
         Grant("receive-dms", "ingress", ("put",), ("dms/**",)),
         Grant("query-dms", "egress", ("query",), ("dms/**",)),
         Grant("dms-answers", "ingress", ("reply", "declare_queryable"), ("dms/**",)),
+        # Where the robot looks (the simulated Mini's joints, published by the daemon).
+        Grant("subscribe-joints", "egress", ("declare_subscriber",), ("robot/joints",)),
+        Grant("receive-joints", "ingress", ("put",), ("robot/joints",)),
     )
 
 
 GRANTS: dict[str, tuple[Grant, ...]] = {
     "perception": (*_input_module(("perception/**", "params/**")), *_watch_daemon()),
     "robot": (
-        *_input_module(("robot/feedback",)),
+        *_input_module(("robot/feedback", "robot/joints")),
         Grant("subscribe-command", "egress", ("declare_subscriber",), ("robot/command",)),
         Grant("receive-command", "ingress", ("put",), ("robot/command",)),
         *_watch_daemon(),

@@ -4,6 +4,12 @@ It implements :class:`dms.kernel.ports.RobotPort`. Every command reports ``start
 then ``done`` when its duration has passed on the caller's clock: speech by word count
 at the speaking rate, media by ``args.duration_s``, motions from a table, screen and
 LED commands immediately. ``interrupt`` stops a command (``interrupted``).
+
+**A body.** Its five joints (:class:`sim.body.SimBody`) move at their speeds toward the
+``joints`` a motion command carries: ``look_at`` and ``point_at`` take as long as the
+farthest joint needs, a gesture may carry joints too (a wave turned toward someone).
+:meth:`SimRobot.joints` is the joint state at ``now``, what ``robot/joints`` reports.
+An interrupted motion leaves the joints where they are.
 :meth:`SimRobot.set_fault` makes a channel fail its commands or drop them (never
 acknowledge), to test that the expression arbiter times them out.
 
@@ -25,7 +31,9 @@ from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Literal
 
+from dms.kernel.body import JOINTS
 from dms.kernel.messages import RobotCommand, RobotFeedback
+from sim.body import SimBody
 
 Fault = Literal["fail", "hang", "stall"]
 
@@ -44,6 +52,11 @@ MOTION_SECONDS: dict[str, float] = {
     "clap": 2.0,
 }
 """How long each gesture takes; unknown gestures take ``DEFAULT_MOTION_S``."""
+
+AIMING_ACTIONS = frozenset({"look_at", "point_at"})
+"""Motions that only turn joints toward targets: they last as long as the turn."""
+SETTLE_S = 0.05
+"""The shortest aiming motion: a target already reached is reported done at once."""
 
 DEFAULT_MOTION_S = 2.0
 DEFAULT_MEDIA_S = 30.0
@@ -97,6 +110,8 @@ class SimRobot:
         self.screen: dict[str, object] = {}
         """What the screen shows now (the last ``show``)."""
         self.leds: dict[str, object] = {}
+        self.body: SimBody | None = None
+        """The joints, made on the first motion or :meth:`joints` (it needs a clock)."""
 
     # ------------------------------------------------------------ faults
 
@@ -125,6 +140,8 @@ class SimRobot:
         if command.channel == "media":
             return _seconds(args.get("duration_s"), DEFAULT_MEDIA_S)
         if command.channel == "motion":
+            if command.action in AIMING_ACTIONS:
+                return SETTLE_S
             name = str(args.get("name", ""))
             base = MOTION_SECONDS.get(name, DEFAULT_MOTION_S)
             return _seconds(args.get("duration_s"), base)
@@ -164,10 +181,44 @@ class SimRobot:
             self.screen = {"action": command.action, **command.args}
         elif command.channel == "led":
             self.leds = {"action": command.action, **command.args}
-        ends = begins + timedelta(seconds=self.duration(command))
+        seconds = self.duration(command)
+        if command.channel == "motion":
+            seconds = max(seconds, self._aim(command, begins))
+        ends = begins + timedelta(seconds=seconds)
         self._running[command.id] = _Running(command, ends)
 
+    def joints(self, now: datetime) -> dict[str, float]:
+        """The joint positions at ``now`` (what ``robot/joints`` reports)."""
+        return self._body(now).advance(now)
+
+    def _body(self, now: datetime) -> SimBody:
+        if self.body is None:
+            self.body = SimBody(now)
+        return self.body
+
+    def _aim(self, command: RobotCommand, begins: datetime) -> float:
+        """Turn the joints a motion names toward their targets from ``begins``; the
+        seconds the farthest needs (0 for a motion that names none)."""
+        wanted = command.args.get("joints")
+        if not isinstance(wanted, dict):
+            return 0.0
+        targets = {
+            name: float(angle)
+            for name, angle in wanted.items()
+            if name in JOINTS and isinstance(angle, int | float) and not isinstance(angle, bool)
+        }
+        if not targets:
+            return 0.0
+        body = self._body(begins)
+        body.aim(targets, begins)
+        return max(
+            abs(body.targets[name] - body.positions[name]) / JOINTS[name].speed for name in targets
+        )
+
     def interrupt(self, command_id: str, now: datetime) -> None:
+        running = self._running.get(command_id)
+        if running is not None and running.command.channel == "motion" and self.body is not None:
+            self.body.aim(self.body.advance(now), now)  # stop where the joints are
         if self._running.pop(command_id, None) is not None:
             # a command still waiting for its launch never reports that it started
             self._out = [i for i in self._out if i[2].id != command_id or i[0] <= now]

@@ -13,6 +13,9 @@ ROBOT_ID_RE = re.compile(r"^[a-z0-9_-]+$")
 PERCEPTION_USER = "perception/user"
 PARAMS_ROBOT = "params/robot"
 PARAMS_ENV = "params/env"
+# ... optional state inputs (shown in the state only once a module declares or sends them) ...
+PERCEPTION_OBJECTS = "perception/objects"
+ROBOT_JOINTS = "robot/joints"
 # ... and event inputs (each message counts once).
 PERCEPTION_TOUCH = "perception/touch"
 PERCEPTION_SPEECH = "perception/speech"
@@ -21,8 +24,9 @@ REQUEST = "request"
 ROBOT_FEEDBACK = "robot/feedback"
 
 STATE_INPUTS = (PERCEPTION_USER, PARAMS_ROBOT, PARAMS_ENV)
+OPTIONAL_INPUTS = (PERCEPTION_OBJECTS, ROBOT_JOINTS)
 EVENT_INPUTS = (PERCEPTION_TOUCH, PERCEPTION_SPEECH, PERCEPTION_SCREEN, REQUEST, ROBOT_FEEDBACK)
-INPUT_KEYS = STATE_INPUTS + EVENT_INPUTS
+INPUT_KEYS = STATE_INPUTS + OPTIONAL_INPUTS + EVENT_INPUTS
 URGENT_INPUTS = frozenset({PERCEPTION_TOUCH, PERCEPTION_SCREEN, PERCEPTION_SPEECH, REQUEST})
 """Inputs acted on at once, not at the next tick."""
 

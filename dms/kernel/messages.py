@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated, Any, ClassVar, Literal
+from typing import Annotated, Any, ClassVar, Literal, get_args
 
 from pydantic import (
     BaseModel,
@@ -20,6 +20,7 @@ from pydantic import (
     StringConstraints,
     field_validator,
     model_serializer,
+    model_validator,
 )
 
 from dms.kernel.activity_names import ACTIVITIES
@@ -63,6 +64,42 @@ class _OmitsUnset(Outbound):
 # ---------------------------------------------------------------- inbound
 
 
+Metres = Annotated[float, Field(ge=-100.0, le=100.0, allow_inf_nan=False)]
+"""A coordinate in metres: a robot on a table perceives nothing 100 m away."""
+QuaternionPart = Annotated[float, Field(ge=-1.0, le=1.0, allow_inf_nan=False)]
+
+
+class Vector3(Inbound):
+    """A position in metres (Foxglove's ``Vector3``)."""
+
+    x: Metres
+    y: Metres
+    z: Metres
+
+
+class Quaternion(Inbound):
+    """An orientation (Foxglove's ``Quaternion``); normalised when used."""
+
+    x: QuaternionPart
+    y: QuaternionPart
+    z: QuaternionPart
+    w: QuaternionPart
+
+    @model_validator(mode="after")
+    def _not_zero(self) -> Quaternion:
+        if self.x * self.x + self.y * self.y + self.z * self.z + self.w * self.w < 1e-6:
+            raise ValueError("orientation must not be the zero quaternion")
+        return self
+
+
+class Pose(Inbound):
+    """Where something is in the robot's base frame (x forward, y left, z up, metres;
+    Foxglove's ``Pose``); no orientation: only its position is known."""
+
+    position: Vector3
+    orientation: Quaternion | None = None
+
+
 class UserPerception(Inbound):
     """``perception/user``: who is in front of the robot."""
 
@@ -70,6 +107,44 @@ class UserPerception(Inbound):
     user_id: Identifier | None = None
     ready: bool = False
     engagement: Unit | None = None
+    face: Pose | None = None
+    """Optional (issue 16): the user's face in the robot's base frame."""
+
+
+class PerceivedObject(Inbound):
+    """One named object or tag seen by the robot."""
+
+    name: Identifier
+    pose: Pose
+
+
+class ObjectsPerception(Inbound):
+    """``perception/objects`` (optional input): the objects or tags seen now, with poses.
+    An object not in the list is not seen now; the robot keeps its last known pose."""
+
+    objects: list[PerceivedObject] = Field(max_length=64)
+
+
+JointName = Literal["hip", "left_arm", "right_arm", "neck", "head"]
+Radians = Annotated[float, Field(ge=-6.3, le=6.3, allow_inf_nan=False)]
+
+
+class RobotJoints(Inbound):
+    """``robot/joints``: the robot's joint positions in radians (the simulated Mini
+    publishes it; an external robot may, with ``--robot zenoh``)."""
+
+    positions: dict[str, Radians] = Field(max_length=16)
+    """By joint: ``hip``, ``left_arm``, ``right_arm``, ``neck``, ``head``."""
+    time: str | None = None
+    """When the positions were measured (ISO-8601 UTC); informative."""
+
+    @field_validator("positions")
+    @classmethod
+    def _known_joints(cls, positions: dict[str, float]) -> dict[str, float]:
+        unknown = sorted(set(positions) - set(get_args(JointName)))
+        if unknown:
+            raise ValueError(f"unknown joint {unknown[0]!r}")
+        return positions
 
 
 class Touch(Inbound):
@@ -310,10 +385,12 @@ INBOUND_BY_KEY: dict[str, type[Inbound]] = {
     "perception/touch": Touch,
     "perception/speech": Speech,
     "perception/screen": ScreenChoice,
+    "perception/objects": ObjectsPerception,
     "params/robot": ProfileParams,
     "params/env": ProfileParams,
     "request": Request,
     "robot/feedback": RobotFeedback,
+    "robot/joints": RobotJoints,
 }
 """Every input key (after ``robots/<id>/``) and the model that validates it."""
 
@@ -322,9 +399,11 @@ SCHEMAS: dict[str, type[BaseModel]] = {
     "perception_touch": Touch,
     "perception_speech": Speech,
     "perception_screen": ScreenChoice,
+    "perception_objects": ObjectsPerception,
     "params": ProfileParams,
     "request": Request,
     "robot_feedback": RobotFeedback,
+    "robot_joints": RobotJoints,
     "robot_command": RobotCommand,
     "dms_errors": ErrorReport,
     "dms_state": DmsState,

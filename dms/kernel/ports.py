@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from datetime import datetime
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 from dms.kernel.messages import RobotCommand, RobotFeedback
 
@@ -31,6 +31,16 @@ class RobotPort(Protocol):
 
     def poll(self, now: datetime) -> list[RobotFeedback]:
         """Feedback that arrived since the last poll, oldest first."""
+        ...
+
+
+@runtime_checkable
+class JointReporter(Protocol):
+    """A robot in the daemon's process that can say where its joints are (the simulated
+    Mini): the daemon publishes it on ``robot/joints`` and the scene follows it."""
+
+    def joints(self, now: datetime) -> dict[str, float]:
+        """The joint positions (radians) at ``now``."""
         ...
 
 

@@ -122,7 +122,7 @@ def test_the_daemons_rules_give_each_role_only_its_keys(tmp_path: Path) -> None:
     puts = {role: _allowed(conf, role, "ingress", "put") for role in secure.ROLES[1:]}
     assert puts == {
         "perception": {"robots/mini/perception/**", "robots/mini/params/**"},
-        "robot": {"robots/mini/robot/feedback"},
+        "robot": {"robots/mini/robot/feedback", "robots/mini/robot/joints"},
         "app": {"robots/mini/request"},
         "admin": {"robots/mini/request"},
     }
@@ -134,7 +134,10 @@ def test_the_daemons_rules_give_each_role_only_its_keys(tmp_path: Path) -> None:
         "admin": {"robots/mini/dms/**", "robots/mini/users/**", "robots/mini/agenda/**"},
     }
     assert _allowed(conf, "robot", "egress", "put") == {"robots/mini/robot/command"}
-    assert _allowed(conf, "app", "egress", "put") == {"robots/mini/dms/**"}
+    assert _allowed(conf, "app", "egress", "put") == {
+        "robots/mini/dms/**",
+        "robots/mini/robot/joints",
+    }
     assert _allowed(conf, "perception", "ingress", "liveliness_token") == {
         "robots/mini/alive/perception/**",
         "robots/mini/alive/params/**",
