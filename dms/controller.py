@@ -281,7 +281,7 @@ class Controller:
             self._step_motivation(snapshot, now)
         with guard("robot"):
             if self.deps.scene is not None:
-                self.deps.scene.update(snapshot.values, now)
+                self.deps.scene.update(snapshot.values, snapshot.fresh, now)
             self.deps.expression.update(now)
             self._robot_blocked = self._robot_unreachable(now)
         if self.deps.profiles is not None:

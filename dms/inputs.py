@@ -102,6 +102,8 @@ class InputSnapshot:
     events: tuple[InputEvent, ...]
     robot_params: Mapping[str, Any]
     env_params: Mapping[str, Any]
+    fresh: frozenset[str] = frozenset()
+    """State inputs received since the last tick (a refresh counts, even if unchanged)."""
 
 
 @dataclass
@@ -133,6 +135,7 @@ class InputBoard:
         self._robot_params: dict[str, Any] = {}
         self._env_params: dict[str, Any] = {}
         self.counters = InputCounters()
+        self._fresh: set[str] = set()
 
     def accept(self, key: str, message: BaseModel, received: float) -> None:
         """Record a validated message (called from the bus's threads)."""
@@ -141,6 +144,7 @@ class InputBoard:
             self.counters.by_key[key] = self.counters.by_key.get(key, 0) + 1
             slot = self._slots[key]
             slot.value, slot.updated = message, received
+            self._fresh.add(key)
             if isinstance(message, ProfileParams):
                 target = self._robot_params if key == keys.PARAMS_ROBOT else self._env_params
                 target.update(message.values)
@@ -209,4 +213,6 @@ class InputBoard:
                 self._events.clear()
             robot = dict(self._robot_params) if keys.PARAMS_ROBOT in values else {}
             env = dict(self._env_params) if keys.PARAMS_ENV in values else {}
-        return InputSnapshot(values, status, events, robot, env)
+            fresh = frozenset(self._fresh) if self._fresh else frozenset()
+            self._fresh.clear()
+        return InputSnapshot(values, status, events, robot, env, fresh)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
+from collections.abc import Set as AbstractSet
 from datetime import datetime
 
 from pydantic import BaseModel
@@ -56,42 +57,50 @@ class Scene:
         self.joints: dict[str, float] = dict(NEUTRAL)
         """The joint state the body frames were last set from."""
         self._joint_source = joints
-        self._seen_user: BaseModel | None = None
-        self._seen_objects: BaseModel | None = None
-        self._seen_joints: BaseModel | None = None
+        self._face: Pose | None = None
+        self._face_name: str | None = None
+        """The face last set (a refresh of the same message only restamps it)."""
 
-    def update(self, values: Mapping[str, BaseModel], now: datetime) -> None:
-        """Move the frames from this tick's inputs (those that are ok)."""
-        user = values.get(keys.PERCEPTION_USER)
-        if user is not self._seen_user and isinstance(user, UserPerception):
-            self._seen_user = user
-            if user.present and user.face is not None:
+    def update(
+        self, values: Mapping[str, BaseModel], fresh: AbstractSet[str], now: datetime
+    ) -> None:
+        """Move the frames from this tick's inputs: ``values`` those that are ok,
+        ``fresh`` the keys received since the last tick (a refresh renews a frame)."""
+        if keys.PERCEPTION_USER in fresh:
+            user = values.get(keys.PERCEPTION_USER)
+            if isinstance(user, UserPerception) and user.present and user.face is not None:
                 self.see_face(user.user_id, user.face, now)
-        objects = values.get(keys.PERCEPTION_OBJECTS)
-        if objects is not self._seen_objects and isinstance(objects, ObjectsPerception):
-            self._seen_objects = objects
-            for seen in objects.objects:
-                self.frames.set(
-                    OBJECT_PREFIX + seen.name,
-                    matrix_of(seen.pose),
-                    BASE,
-                    now,
-                    self.object_stale_after_s,
-                )
+        if keys.PERCEPTION_OBJECTS in fresh:
+            objects = values.get(keys.PERCEPTION_OBJECTS)
+            if isinstance(objects, ObjectsPerception):
+                for seen in objects.objects:
+                    self.frames.set(
+                        OBJECT_PREFIX + seen.name,
+                        matrix_of(seen.pose),
+                        BASE,
+                        now,
+                        self.object_stale_after_s,
+                    )
         if self._joint_source is not None:
             self.set_joints(self._joint_source(now))
-        else:
+        elif keys.ROBOT_JOINTS in fresh:
             joints = values.get(keys.ROBOT_JOINTS)
-            if joints is not self._seen_joints and isinstance(joints, RobotJoints):
-                self._seen_joints = joints
+            if isinstance(joints, RobotJoints):
                 self.set_joints(joints.positions)
 
     def see_face(self, user_id: str | None, face: Pose, now: datetime) -> None:
         """The face of the person in front (``user_id`` when known) is at ``face``."""
+        named = None if user_id is None else FACE_PREFIX + user_id
+        if face is self._face and named == self._face_name:  # refreshed, unchanged: cheap
+            self.frames.restamp(USER_FRAME, now)
+            if named is not None:
+                self.frames.restamp(named, now)
+            return
+        self._face, self._face_name = face, named
         matrix = matrix_of(face)
         self.frames.set(USER_FRAME, matrix, BASE, now, self.face_stale_after_s)
-        if user_id is not None:
-            self.frames.set(FACE_PREFIX + user_id, matrix, BASE, now, self.face_stale_after_s)
+        if named is not None:
+            self.frames.set(named, matrix, BASE, now, self.face_stale_after_s)
 
     def set_joints(self, positions: Mapping[str, float]) -> None:
         """The body frames follow a joint state (unnamed joints keep their position)."""

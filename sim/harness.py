@@ -225,7 +225,7 @@ class Simulation:
         self.user = user
         self.presence = None
         user.arrive(self.clock.now())
-        self.feed(keys.PERCEPTION_USER, user.perception())
+        self.feed(keys.PERCEPTION_USER, user.perception(self.clock.now()))
 
     def unseat(self) -> None:
         """The simulated user leaves."""
@@ -246,7 +246,8 @@ class Simulation:
         if self.perception_on:  # a refresh of what is perceived, not a new input
             monotonic = self.clock.monotonic()
             if self.user is not None:
-                self.stack.inputs.accept(keys.PERCEPTION_USER, self.user.perception(), monotonic)
+                perceived = self.user.perception(self.clock.now())
+                self.stack.inputs.accept(keys.PERCEPTION_USER, perceived, monotonic)
             elif self.presence is not None:
                 self.stack.inputs.accept(keys.PERCEPTION_USER, self.presence, monotonic)
         now = self.clock.now()

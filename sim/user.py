@@ -7,7 +7,8 @@ inputs that fall due later (:meth:`due`): an answer by voice or on the screen af
 delay (sometimes misrecognized, sometimes never given), a menu choice according to
 its hidden preferences, an activity asked for by name, a touch on the right shoulder
 and "stop" in an activity it dislikes. :meth:`perception` is what the perception
-module would publish about it. The same object drives the in-process simulation
+module would publish about it, with the face's position from the user's :class:`sim.seat.Seat`
+(they lean and move their chair now and then). The same object drives the in-process simulation
 (``sim.harness``) and the Zenoh visitor (``sim.visitor``).
 """
 
@@ -25,8 +26,18 @@ from pydantic import BaseModel
 
 from dms.kernel import keys
 from dms.kernel.activity_names import ACTIVITIES, ENTERTAINMENT_ACTIVITIES
-from dms.kernel.messages import Decision, RobotCommand, ScreenChoice, Speech, Touch, UserPerception
+from dms.kernel.messages import (
+    Decision,
+    Pose,
+    RobotCommand,
+    ScreenChoice,
+    Speech,
+    Touch,
+    UserPerception,
+    Vector3,
+)
 from sim.persona import Persona, Span
+from sim.seat import Position, Seat
 
 Output = tuple[str, BaseModel]
 """An input for the daemon: (key relative to the robot, message)."""
@@ -96,7 +107,11 @@ class SimulatedUser:
         """Entertainment activities started during this visit."""
         self._activity_serial = 0
         self._wants_stop: str | None = None
-        self._perceived: tuple[tuple[str, bool, float] | None, UserPerception] | None = None
+        self.seat: Seat | None = None
+        """Where the face is; made when the user arrives (its draws are its own)."""
+        self._perceived: (
+            tuple[tuple[str, bool, float, Position | None] | None, UserPerception] | None
+        ) = None
         """The last perception and what it was made of: sent again while that holds."""
         self._question: _Question | None = None
         self._queue: list[_Pending] = []
@@ -110,6 +125,8 @@ class SimulatedUser:
         self.present = True
         self.ready = False
         self.done = set()
+        if self.seat is None:
+            self.seat = Seat(now, f"{self.user_id}:seat")
         self._schedule(
             now + timedelta(seconds=_draw(self.rng, self.persona.arrive_after_s)), self._sit
         )
@@ -117,7 +134,7 @@ class SimulatedUser:
     def _sit(self, now: datetime) -> list[Output]:
         if self.present:
             self.ready = True
-            return [(keys.PERCEPTION_USER, self.perception())]
+            return [(keys.PERCEPTION_USER, self.perception(now))]
         return []
 
     def leave(self, now: datetime) -> None:
@@ -128,19 +145,29 @@ class SimulatedUser:
         self.activity = None
         self._wants_stop = None
 
-    def perception(self) -> UserPerception:
-        """What a perception module publishes about this user now."""
-        key: tuple[str, bool, float] | None = None
+    def perception(self, now: datetime | None = None) -> UserPerception:
+        """What a perception module publishes about this user now (with ``now``: where
+        their face is, too)."""
+        key: tuple[str, bool, float, Position | None] | None = None
         if self.present:
             engagement = self.persona.liking(self.activity) if self.activity else 0.7
-            key = (self.user_id, self.ready, round(engagement, 2))
+            face = self.seat.face(now) if self.seat is not None and now is not None else None
+            key = (self.user_id, self.ready, round(engagement, 2), face)
         if self._perceived is not None and self._perceived[0] == key:
             return self._perceived[1]  # a frozen message: built once, not every tick
-        message = (
-            UserPerception(present=False, user_id=None, ready=False, engagement=None)
-            if key is None
-            else UserPerception(present=True, user_id=key[0], ready=key[1], engagement=key[2])
-        )
+        if key is None:
+            message = UserPerception(present=False, user_id=None, ready=False, engagement=None)
+        else:
+            user_id, ready, engagement, face = key
+            message = UserPerception(
+                present=True,
+                user_id=user_id,
+                ready=ready,
+                engagement=engagement,
+                face=None
+                if face is None
+                else Pose(position=Vector3(x=face[0], y=face[1], z=face[2])),
+            )
         self._perceived = (key, message)
         return message
 

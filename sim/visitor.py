@@ -123,7 +123,7 @@ class Visitor:
                     next_arrival = now + timedelta(seconds=self.away_s)
                 outputs = self.user.due(now)
                 if now >= next_perception:
-                    outputs.append((keys.PERCEPTION_USER, self.user.perception()))
+                    outputs.append((keys.PERCEPTION_USER, self.user.perception(now)))
                     next_perception = now + timedelta(seconds=PERCEPTION_PERIOD_S)
             self._publish(outputs)
 

@@ -135,6 +135,13 @@ class FrameStore:
             ancestor = self._frames[ancestor].parent
         self._frames[name] = _Frame(parent, matrix, stamp, stale_after_s)
 
+    def restamp(self, name: str, stamp: datetime) -> None:
+        """``name`` was seen again where it was (a perception refreshed, unchanged)."""
+        frame = self._frames.get(name)
+        if frame is None:
+            raise UnknownFrame(name)
+        frame.stamp = stamp
+
     def forget(self, name: str) -> None:
         """Drop ``name`` and every frame under it (an object taken away)."""
         doomed = {name}
