@@ -6,8 +6,8 @@ at the speaking rate, media by ``args.duration_s``, motions from a table, screen
 LED commands immediately. ``interrupt`` stops a command (``interrupted``).
 
 **A body.** Its five joints (:class:`sim.body.SimBody`) move at their speeds toward the
-``joints`` a motion command carries: ``look_at`` and ``point_at`` take as long as the
-farthest joint needs, a gesture may carry joints too (a wave turned toward someone).
+``joints`` a command carries: an ``aim`` command (``look_at``, ``point_at``, ``turn_to``)
+takes as long as the farthest joint needs, a gesture may carry joints too.
 :meth:`SimRobot.joints` is the joint state at ``now``, what ``robot/joints`` reports.
 An interrupted motion leaves the joints where they are.
 :meth:`SimRobot.set_fault` makes a channel fail its commands or drop them (never
@@ -53,8 +53,6 @@ MOTION_SECONDS: dict[str, float] = {
 }
 """How long each gesture takes; unknown gestures take ``DEFAULT_MOTION_S``."""
 
-AIMING_ACTIONS = frozenset({"look_at", "point_at"})
-"""Motions that only turn joints toward targets: they last as long as the turn."""
 SETTLE_S = 0.05
 """The shortest aiming motion: a target already reached is reported done at once."""
 
@@ -139,9 +137,9 @@ class SimRobot:
             return 0.3 + 60.0 * words / (wpm or self.speaking_rate_wpm)
         if command.channel == "media":
             return _seconds(args.get("duration_s"), DEFAULT_MEDIA_S)
+        if command.channel == "aim":
+            return SETTLE_S
         if command.channel == "motion":
-            if command.action in AIMING_ACTIONS:
-                return SETTLE_S
             name = str(args.get("name", ""))
             base = MOTION_SECONDS.get(name, DEFAULT_MOTION_S)
             return _seconds(args.get("duration_s"), base)
@@ -182,7 +180,7 @@ class SimRobot:
         elif command.channel == "led":
             self.leds = {"action": command.action, **command.args}
         seconds = self.duration(command)
-        if command.channel == "motion":
+        if command.channel in ("motion", "aim"):
             seconds = max(seconds, self._aim(command, begins))
         ends = begins + timedelta(seconds=seconds)
         self._running[command.id] = _Running(command, ends)
@@ -217,7 +215,8 @@ class SimRobot:
 
     def interrupt(self, command_id: str, now: datetime) -> None:
         running = self._running.get(command_id)
-        if running is not None and running.command.channel == "motion" and self.body is not None:
+        moves = running is not None and running.command.channel in ("motion", "aim")
+        if moves and self.body is not None:
             self.body.aim(self.body.advance(now), now)  # stop where the joints are
         if self._running.pop(command_id, None) is not None:
             # a command still waiting for its launch never reports that it started

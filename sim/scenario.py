@@ -123,7 +123,7 @@ class VisitorSpec(_Spec):
 class RobotFaultSpec(_Spec):
     """Make the simulated robot misbehave on a channel from now on."""
 
-    channel: Literal["speech", "screen", "led", "motion", "media"]
+    channel: Literal["speech", "screen", "led", "motion", "media", "aim"]
     fault: Literal["fail", "hang", "none"] = "fail"
 
 

@@ -13,6 +13,11 @@ A command the robot never acknowledges is timed out after ``ack_timeout_s``, and
 started but never finished after ``done_timeout_s`` (plus the ``duration_s`` of media
 that says how long it lasts): its handle ends ``timed_out`` and the activity that issued
 it fails cleanly.
+
+The ``aim`` channel (gaze and pointing toward a frame) is best effort: a robot that
+predates it may ignore its commands, so their going unacknowledged never counts
+toward :attr:`ExpressionArbiter.robot_offline`, and the blocks that send them go on
+without them. It has its own lane, so it never holds up the gestures of ``motion``.
 """
 
 from __future__ import annotations
@@ -26,6 +31,10 @@ from typing import Any
 
 from dms.kernel.messages import Channel, RobotCommand
 from dms.kernel.ports import RobotPort
+
+
+BEST_EFFORT_CHANNELS = frozenset({"aim"})
+"""Channels whose silence says nothing about the robot being there."""
 
 
 class Priority(IntEnum):
@@ -231,7 +240,10 @@ class ExpressionArbiter:
             overdue = self._overdue(active, now)
             if overdue is not None:
                 self.timeouts += 1
-                if active.status is CommandStatus.SENT:
+                if (
+                    active.status is CommandStatus.SENT
+                    and active.channel not in BEST_EFFORT_CHANNELS
+                ):
                     self.unacked_in_a_row += 1
                 active.status = CommandStatus.TIMED_OUT
                 active.detail = overdue

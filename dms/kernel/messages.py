@@ -221,7 +221,9 @@ class RobotFeedback(Inbound):
 
 # ---------------------------------------------------------------- outbound
 
-Channel = Literal["speech", "screen", "led", "motion", "media"]
+Channel = Literal["speech", "screen", "led", "motion", "media", "aim"]
+"""``aim`` (issue 16): turning joints toward a frame (``look_at``, ``point_at``,
+``turn_to``); best effort, so a robot that ignores it loses nothing (see the arbiter)."""
 
 
 class RobotCommand(Outbound):
