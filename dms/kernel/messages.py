@@ -111,10 +111,14 @@ class UserPerception(Inbound):
     """Optional (issue 16): the user's face in the robot's base frame."""
 
 
+ObjectName = Annotated[str, StringConstraints(pattern=r"^[A-Za-z0-9_.-]{1,64}$")]
+"""An object's or a tag's name: its frame is ``object:<name>``."""
+
+
 class PerceivedObject(Inbound):
     """One named object or tag seen by the robot."""
 
-    name: Identifier
+    name: ObjectName
     pose: Pose
 
 
