@@ -32,7 +32,6 @@ from typing import Any
 from dms.kernel.messages import Channel, RobotCommand
 from dms.kernel.ports import RobotPort
 
-
 BEST_EFFORT_CHANNELS = frozenset({"aim"})
 """Channels whose silence says nothing about the robot being there."""
 

@@ -148,7 +148,8 @@ def test_optional_inputs_appear_in_the_state_only_once_provided() -> None:
         ),
         (
             "perception/user",
-            b'{"present": true, "face": {"position": {"x": 1, "y": 0, "z": 0}, "orientation": {"x": 0, "y": 0, "z": 0, "w": 0}}}',
+            b'{"present": true, "face": {"position": {"x": 1, "y": 0, "z": 0},'
+            b' "orientation": {"x": 0, "y": 0, "z": 0, "w": 0}}}',
             "zero quaternion",
         ),
         (

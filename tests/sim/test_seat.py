@@ -3,6 +3,7 @@ joints toward what an aim command names, at their speeds, reporting where they a
 
 from __future__ import annotations
 
+import itertools
 from datetime import UTC, datetime, timedelta
 
 import pytest
@@ -20,7 +21,7 @@ def test_a_seated_face_stays_put_then_moves_within_reach_and_settles() -> None:
     settings = SeatSettings()
     assert seat.face(T0) == HOME
     faces = [seat.face(T0 + timedelta(seconds=s)) for s in range(0, 1800, 1)]
-    moves = sum(1 for a, b in zip(faces, faces[1:], strict=False) if a != b)
+    moves = sum(1 for a, b in itertools.pairwise(faces) if a != b)
     assert moves > 10  # half an hour: she leaned and shifted more than a few times
     assert len(set(faces)) > 10
     for x, y, z in faces[60 * 3 :]:
