@@ -198,7 +198,8 @@ def build_stack(
         report_error=report_error,
         robot_state=robot_state,
         scene=Scene(
-            settings.inputs.stale_after_s,
+            settings.frames.face_live_s,
+            settings.frames.object_live_s,
             joints=robot.joints if isinstance(robot, JointReporter) else None,
         ),
     )

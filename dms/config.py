@@ -95,6 +95,16 @@ class PrivacySettings(_Section):
     only to the admin role)."""
 
 
+class FrameSettings(_Section):
+    """How long a perceived frame is live (issue 16): after it, a behavior sees its last
+    known pose with its age, and ``attend`` holds the gaze, then returns to neutral."""
+
+    face_live_s: float = Field(2.0, gt=0.0)
+    """A face not seen again for this long is last known (the person turned away)."""
+    object_live_s: float = Field(2.0, gt=0.0)
+    """An object or tag not seen again for this long is last known."""
+
+
 class ControllerSettings(_Section):
     tick_period_s: float = Field(0.5, gt=0.0, le=10.0)
     confirm_timeout_s: float = Field(10.0, gt=0.0)
@@ -169,6 +179,7 @@ class Settings(_Section):
     rules: RulesSettings = Field(default_factory=RulesSettings)
     behaviors: BehaviorsSettings = Field(default_factory=BehaviorsSettings)
     privacy: PrivacySettings = Field(default_factory=PrivacySettings)
+    frames: FrameSettings = Field(default_factory=FrameSettings)
     motivation: dict[str, Any] = Field(default_factory=dict)
     """Validated by the motivation package's own model."""
     source: Path | None = Field(default=None, exclude=True)

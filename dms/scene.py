@@ -3,8 +3,8 @@
 Each tick the controller hands :meth:`Scene.update` the inputs that are ok. A new
 ``perception/user`` with a ``face`` moves the frames ``user`` (whoever is in front)
 and ``face:<user_id>``; a new ``perception/objects`` moves ``object:<name>`` for each
-object seen. A frame is *live* while its input is fresh (the input's ``stale_after_s``)
-and *last known* after, with its age: behaviors choose what to do with an old pose
+object seen. A frame is *live* while it is seen again within ``[frames] face_live_s``
+(``object_live_s``) and *last known* after, with its age: behaviors choose what to do with an old pose
 (seed 002's task frames). The body's frames follow the joint state: the simulated
 Mini's own, or the external robot's ``robot/joints``.
 
@@ -13,7 +13,6 @@ Pure and on the caller's clock, like the motivation model: nothing here reads ti
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping
 from collections.abc import Set as AbstractSet
 from datetime import datetime
@@ -29,7 +28,7 @@ USER_FRAME = "user"
 """The face of whoever is in front of the robot: what ``attend`` and ``look_at`` follow
 by default."""
 
-DEFAULT_STALE_AFTER_S = 5.0
+DEFAULT_LIVE_S = 2.0
 
 JointSource = Callable[[datetime], Mapping[str, float]]
 """The joint state at ``now`` of a robot in the same process (the simulated Mini)."""
@@ -47,12 +46,14 @@ class Scene:
 
     def __init__(
         self,
-        stale_after_s: Mapping[str, float | None] | None = None,
+        face_live_s: float = DEFAULT_LIVE_S,
+        object_live_s: float = DEFAULT_LIVE_S,
         joints: JointSource | None = None,
     ) -> None:
-        limits = stale_after_s or {}
-        self.face_stale_after_s = _limit(limits, keys.PERCEPTION_USER)
-        self.object_stale_after_s = _limit(limits, keys.PERCEPTION_OBJECTS)
+        """``face_live_s``, ``object_live_s``: how long a frame not seen again is live
+        (``[frames]``); ``joints``: the in-process robot's joint state, if it has one."""
+        self.face_live_s = face_live_s
+        self.object_live_s = object_live_s
         self.frames = FrameStore(body_frames(NEUTRAL))
         self.joints: dict[str, float] = dict(NEUTRAL)
         """The joint state the body frames were last set from."""
@@ -79,7 +80,7 @@ class Scene:
                         matrix_of(seen.pose),
                         BASE,
                         now,
-                        self.object_stale_after_s,
+                        self.object_live_s,
                     )
         if self._joint_source is not None:
             self.set_joints(self._joint_source(now))
@@ -98,9 +99,9 @@ class Scene:
             return
         self._face, self._face_name = face, named
         matrix = matrix_of(face)
-        self.frames.set(USER_FRAME, matrix, BASE, now, self.face_stale_after_s)
+        self.frames.set(USER_FRAME, matrix, BASE, now, self.face_live_s)
         if named is not None:
-            self.frames.set(named, matrix, BASE, now, self.face_stale_after_s)
+            self.frames.set(named, matrix, BASE, now, self.face_live_s)
 
     def set_joints(self, positions: Mapping[str, float]) -> None:
         """The body frames follow a joint state (unnamed joints keep their position)."""
@@ -109,9 +110,3 @@ class Scene:
         self.joints.update(positions)
         for name, (parent, matrix) in body_frames(self.joints).items():
             self.frames.set(name, matrix, parent)
-
-
-def _limit(limits: Mapping[str, float | None], key: str) -> float:
-    """The input's staleness limit (not configured: the default; None: never stale)."""
-    value = limits.get(key, DEFAULT_STALE_AFTER_S)
-    return math.inf if value is None else value

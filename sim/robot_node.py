@@ -2,8 +2,9 @@
 
 For ``dms run --robot zenoh``: it executes every ``robot/command`` (an ``interrupt``
 command stops its ``args.target``) and publishes ``robot/feedback`` (started, done,
-interrupted, failed) as the simulated robot reports it. It declares
-``alive/robot/feedback`` so the daemon knows the robot is there.
+interrupted, failed) as the simulated robot reports it, and its joint positions on
+``robot/joints`` ten times a second (the daemon's frames follow them). It declares
+``alive/robot/feedback`` and ``alive/robot/joints`` so the daemon knows the robot is there.
 """
 
 from __future__ import annotations
@@ -15,10 +16,12 @@ from pydantic import ValidationError
 
 from dms.bus import ZenohClient
 from dms.kernel import keys
-from dms.kernel.clock import Clock
+from dms.kernel.clock import Clock, iso
 from dms.kernel.messages import RobotCommand
 
 POLL_S = 0.02
+JOINTS_PERIOD_S = 0.1
+"""How often the joint positions are published (a robot's joint states come at 10 Hz+)."""
 
 
 class RobotNode:
@@ -34,6 +37,7 @@ class RobotNode:
         self._lock = threading.Lock()
         self.commands = 0
         self.feedback = 0
+        self.joint_states = 0
 
     def _on_command(self, _key: str, payload: Any) -> None:
         try:
@@ -54,12 +58,19 @@ class RobotNode:
         """Serve until stopped (or for ``duration_s`` seconds)."""
         self.client.subscribe(keys.ROBOT_COMMAND, self._on_command)
         self.client.declare_token(keys.ALIVE_PREFIX + keys.ROBOT_FEEDBACK)
-        start = self.clock.monotonic()
+        self.client.declare_token(keys.ALIVE_PREFIX + keys.ROBOT_JOINTS)
+        start = next_joints = self.clock.monotonic()
         while not self.stopped.wait(POLL_S):
+            now = self.clock.now()
             with self._lock:
-                out = self.robot.poll(self.clock.now())
+                out = self.robot.poll(now)
+                joints = self.robot.joints(now)
             for feedback in out:
                 self.client.publish(keys.ROBOT_FEEDBACK, feedback.model_dump(mode="json"))
                 self.feedback += 1
+            if self.clock.monotonic() >= next_joints:
+                next_joints += JOINTS_PERIOD_S
+                self.client.publish(keys.ROBOT_JOINTS, {"positions": joints, "time": iso(now)})
+                self.joint_states += 1
             if duration_s is not None and self.clock.monotonic() - start >= duration_s:
                 break

@@ -33,10 +33,9 @@ def _user(y: float, user_id: str | None = "ann") -> UserPerception:
 class Ticking:
     """An input board and a scene, ticked as the controller does (monotonic = seconds)."""
 
-    def __init__(self, stale_after_s: float = 5.0) -> None:
-        limits = {keys.PERCEPTION_USER: stale_after_s, keys.PERCEPTION_OBJECTS: stale_after_s}
-        self.board = InputBoard(limits)
-        self.scene = Scene(limits)
+    def __init__(self, stale_after_s: float = 2.0) -> None:
+        self.board = InputBoard()
+        self.scene = Scene(face_live_s=stale_after_s, object_live_s=stale_after_s)
         self.t = 0.0
 
     def feed(self, key: str, message: object) -> None:
