@@ -105,8 +105,10 @@ class Scene:
 
     def set_joints(self, positions: Mapping[str, float]) -> None:
         """The body frames follow a joint state (unnamed joints keep their position)."""
-        if all(self.joints.get(name) == angle for name, angle in positions.items()):
-            return
+        if positions == self.joints or all(
+            self.joints.get(name) == angle for name, angle in positions.items()
+        ):
+            return  # the common case, a body at rest, costs one dict comparison
         self.joints.update(positions)
         for name, (parent, matrix) in body_frames(self.joints).items():
             self.frames.set(name, matrix, parent)

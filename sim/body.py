@@ -37,7 +37,7 @@ class SimBody:
         """The joint positions at ``now``: each moved toward its target at its speed."""
         elapsed = max(0.0, (now - self._at).total_seconds())
         self._at = max(self._at, now)
-        if elapsed > 0.0:
+        if elapsed > 0.0 and self.targets != self.positions:
             for name, target in self.targets.items():
                 position = self.positions[name]
                 step = JOINTS[name].speed * elapsed
