@@ -1,65 +1,271 @@
 """The building blocks for Mini: generic, parameterized leaf states (ROS Commander's tools).
 
-Each block declares its parameters (:class:`Param`: type, default, whether required)
-and its outcomes; the loader checks a behavior file against them and the JSON Schema
-is generated from them. Parameter values may hold placeholders (``"{user.name}"``)
-bound when the state is entered. Blocks that talk to the robot go through the
-expression arbiter with the activity's source; a command that fails or is never
-acknowledged fails the block (and the activity) with the reason.
+Each block declares its parameters once, as a pydantic model written just before it.
+From that model come the loader's checks (:func:`param_problems`: unknown, missing and
+mistyped parameters), the values a state gets each time it is entered
+(:meth:`Block.bind_params`), and the block's part of the JSON Schema of behavior files
+(``activities/behavior.schema.json``, see :func:`activities.spec.json_schema`). A new
+block is a model, a class and an entry in :data:`BLOCKS`::
+
+    class LookAtParams(BlockParams):
+        target: Text = Field(description="Who or what to look at: a user id or a place.")
+        duration_s: float | None = Field(None, description="How long; null: until moved.")
+
+
+    class LookAt(Block[LookAtParams]):
+        DOC = "Turn the head towards `target`; done when the robot looks at it."
+        PARAMS = LookAtParams
+
+        def begin(self, now: datetime) -> None:
+            self.handles = []
+            self.command("motion", "look_at", {"target": self.args.target}, now)
+
+In a model, a field without a default is required; ``X | None = None`` is optional with
+nothing as its default; ``Literal[...]`` is a choice; :data:`Text` is a string that a
+bound placeholder fills with any value as it reads in a sentence (``6``, ``a, b and
+c``); the ``description`` is the documentation (the schema carries it). A block reads
+its values, typed, from ``self.args`` (an instance of its model).
+
+Any parameter may be written as a placeholder, ``"{user.name}"`` (the loader checks the
+rest, the schema allows it); a value holding placeholders is bound when the state is
+entered and only then checked against the model (a value that still does not fit
+fails the activity, naming the parameter). Values with no placeholder are checked at
+load and validated once, then shared by every entry of the state: models are frozen.
+A placeholder that binds to nothing leaves a parameter at its default (but an empty
+string stays an empty string where any string is a value).
+
+Blocks whose outcomes depend on their parameters (``ask``, ``decide``) work them out
+from the parameters as written (:meth:`Block.outcomes_for`). Blocks that talk to the
+robot go through the expression arbiter with the activity's source; a command that
+fails or is never acknowledged fails the block (and the activity) with the reason.
 """
 
 from __future__ import annotations
 
+import copy
+import functools
 import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime, timedelta
-from typing import Any, ClassVar
+from typing import Annotated, Any, ClassVar, Generic, Literal, TypeVar, cast
+
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+)
 
 from activities.engine import Event, Io, Node, Runtime, Status
+from activities.errors import BehaviorError
 from activities.synonyms import match_activity
-from activities.template import as_text, is_single_placeholder
+from activities.template import as_text, has_placeholder, is_single_placeholder, render
 from dms.kernel.activity_names import USER_SELECTABLE
 from dms.kernel.expression import CommandHandle, CommandStatus, Priority
 from dms.kernel.messages import Channel, ScreenChoice, Speech, Touch
 from dms.kernel.words import digits
 
+# ---------------------------------------------------------------- parameters
+
+
+class BlockParams(BaseModel):
+    """The parameters of a block (or a container) as a behavior file writes them.
+
+    Unknown names are refused. Frozen: one instance may serve every entry of a state.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    PLACEHOLDERS: ClassVar[frozenset[str] | None] = None
+    """The parameters that may be written as a placeholder; None: all of them (a block
+    binds them when its state is entered). Containers bind none but an iterator's
+    ``items``."""
+
+    @classmethod
+    def may_bind(cls, key: str) -> bool:
+        """Whether parameter ``key`` may be written as a placeholder."""
+        return cls.PLACEHOLDERS is None or key in cls.PLACEHOLDERS
+
+
+_BINDING: dict[str, bool] = {"binding": True}
+"""The validation context of a state's entry, where placeholders have been bound."""
+
+
+def _bound_text(value: Any, info: ValidationInfo) -> Any:
+    """A bound value read as text (``8``, ``a, b and c``); a value written in the file
+    itself must be a string already (the loader validates without this context)."""
+    if info.context is _BINDING and value is not None and not isinstance(value, str):
+        return as_text(value)
+    return value
+
+
+Text = Annotated[str, BeforeValidator(_bound_text)]
+"""A string; a placeholder that binds to another value gives that value as text."""
+
+
+def accepts_any_string(schema: Mapping[str, Any]) -> bool:
+    """Whether a JSON Schema takes every string (a placeholder then needs no mention)."""
+    if "anyOf" in schema:
+        return any(accepts_any_string(option) for option in schema["anyOf"])
+    constrained = {"enum", "const", "pattern", "minLength", "maxLength", "format"}
+    kind = schema.get("type")
+    return (kind is None or kind == "string") and not constrained & schema.keys()
+
+
+_WORDS = {
+    "string": "string",
+    "integer": "integer",
+    "number": "number",
+    "boolean": "boolean",
+    "object": "mapping",
+    "null": "null",
+}
+
+
+def _expected(schema: Mapping[str, Any]) -> str:
+    """What a field's JSON Schema asks for, in the words of the loader's messages."""
+    if "anyOf" in schema:
+        return " or ".join(_expected(option) for option in schema["anyOf"])
+    kind = schema.get("type")
+    if "enum" in schema:
+        return f"{_WORDS.get(str(kind), 'value')} one of {list(schema['enum'])}"
+    if kind == "array":
+        items = schema.get("items") or {}
+        return f"list of {_expected(items)}s" if items.get("type") else "list"
+    return _WORDS.get(str(kind), "anything")
+
 
 @dataclass(frozen=True)
-class Param:
-    """One parameter of a block."""
+class _Fields:
+    """What the loader and the binding need to know of a model, worked out once."""
 
-    type: str
-    """``string``, ``integer``, ``number``, ``boolean``, ``string_list``, ``list``,
-    ``mapping`` or ``any``; a ``"{...}"`` placeholder is accepted for any type."""
-    required: bool = False
-    default: Any = None
-    doc: str = ""
-    enum: tuple[str, ...] = ()
-    nullable: bool = False
+    names: tuple[str, ...]
+    """The parameters as written (a field's alias where it has one: ``in``)."""
+    required: frozenset[str]
+    text: frozenset[str]
+    """Parameters that take any string: an empty one is a value, not nothing."""
+    expected: dict[str, str]
+    """Each parameter's type in words (``string``, ``list of strings``, ...)."""
+
+
+@functools.cache
+def _fields(model: type[BlockParams]) -> _Fields:
+    properties = model.model_json_schema()["properties"]
+    names = tuple(field.alias or name for name, field in model.model_fields.items())
+    required = frozenset(
+        field.alias or name for name, field in model.model_fields.items() if field.is_required()
+    )
+    text = frozenset(key for key in names if accepts_any_string(properties[key]))
+    return _Fields(names, required, text, {key: _expected(properties[key]) for key in names})
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 120 else text[:117] + "..."
+
+
+def _explain(
+    model: type[BlockParams],
+    error: ValidationError,
+    values: Mapping[str, Any],
+    deferred: frozenset[str] = frozenset(),
+) -> list[tuple[str | None, str]]:
+    """One ``(parameter, message)`` per parameter pydantic refused, in the order
+    written, then the missing ones (not those in ``deferred``: written as placeholders)."""
+    fields = _fields(model)
+    found: dict[str | None, str] = {}
+    missing: list[tuple[str | None, str]] = []
+    for detail in error.errors():
+        key = str(detail["loc"][0]) if detail["loc"] else None
+        if detail["type"] == "missing":
+            if key not in deferred:
+                missing.append((key, f"missing parameter {key!r}"))
+        elif key in found:
+            continue  # one message a parameter (a union fails once per option)
+        elif detail["type"] == "extra_forbidden":
+            found[key] = f"unknown parameter {key!r} ({', '.join(fields.names)})"
+        elif key is None or key not in values:
+            found[key] = detail["msg"]  # a check across parameters
+        else:
+            value = values[key]
+            found[key] = (
+                f"parameter {key!r} must be {fields.expected[key]}, "
+                f"not {type(value).__name__} {_short(value)}"
+            )
+    order = {key: index for index, key in enumerate(values)}
+    written = sorted(found.items(), key=lambda item: order.get(item[0] or "", len(order)))
+    return [*written, *missing]
+
+
+def holds_placeholder(value: Any) -> bool:
+    """A value to bind when the state is entered: a placeholder in it, at any depth."""
+    if isinstance(value, str):
+        return has_placeholder(value)
+    if isinstance(value, list):
+        return any(holds_placeholder(item) for item in value)
+    if isinstance(value, dict):
+        return any(holds_placeholder(item) for item in value.values())
+    return False
+
+
+def param_problems(
+    model: type[BlockParams], written: Mapping[str, Any]
+) -> list[tuple[str | None, str]]:
+    """What is wrong with parameters as written in a file: ``(parameter, message)``.
+
+    A value that is exactly one placeholder may be of any type (where the model lets
+    it be bound): it is left out here and checked once bound. Other values must fit
+    exactly (strict: ``"3"`` is not a number, ``3.5`` not a string), as the JSON Schema
+    says.
+    """
+    deferred = frozenset(
+        k for k, v in written.items() if model.may_bind(k) and is_single_placeholder(v)
+    )
+    values = {k: v for k, v in written.items() if k not in deferred}
+    try:
+        model.model_validate(values, strict=True)
+    except ValidationError as error:
+        return _explain(model, error, values, deferred)
+    return []
 
 
 _BROKEN = frozenset({CommandStatus.FAILED, CommandStatus.TIMED_OUT})
 """What a command ends with when the robot could not do it: the block fails."""
 
+P = TypeVar("P", bound=BlockParams)
 
-class Block(Node):
-    """A leaf state: binds its parameters on entry, sends robot commands, waits on them."""
+
+class Block(Node, Generic[P]):
+    """A leaf state: binds its parameters on entry, sends robot commands, waits on them.
+
+    ``PARAMS`` is the model of the parameters a file writes; ``self.args`` holds this
+    entry's values, an instance of ``P`` (the same model, but for ``menu``, which asks
+    an ``ask`` question made of its own parameters).
+    """
 
     kind = "block"
-    PARAMS: ClassVar[dict[str, Param]] = {}
+    PARAMS: ClassVar[type[BlockParams]] = BlockParams
     OUTCOMES: ClassVar[tuple[str, ...]] = ("done",)
     DOC: ClassVar[str] = ""
+
+    args: P
+    """The parameters of this entry, bound and validated (set by :meth:`bind_params`)."""
 
     def __init__(self, name: str, rt: Runtime, params: Mapping[str, Any], io: Io | None = None):
         super().__init__(name, self.outcomes_for(params), rt, io)
         self.params = dict(params)
-        self.args: dict[str, Any] = {}
         self.handles: list[CommandHandle] = []
+        self._templated = {k: v for k, v in self.params.items() if holds_placeholder(v)}
+        """The values to bind at each entry; the others are the same every time."""
+        self._fixed: BlockParams | None = None
 
     @classmethod
     def outcomes_for(cls, params: Mapping[str, Any]) -> tuple[str, ...]:
-        """The outcomes of a state of this block with ``params`` (most blocks: fixed)."""
+        """The outcomes of a state of this block with ``params`` as written (most
+        blocks: fixed). Called at load, before placeholders are bound."""
         return cls.OUTCOMES
 
     def describe(self) -> dict[str, Any]:
@@ -74,12 +280,42 @@ class Block(Node):
 
     # ------------------------------------------------------------ helpers
 
+    def bound(self) -> BlockParams:
+        """The parameters of this entry as a ``PARAMS`` instance.
+
+        Without placeholders: validated once (the loader checked them) and reused.
+        With: bound in the current userdata and profiles, then validated in lax mode
+        (``"3"`` is 3) with :data:`Text` values read as text; a value that does not
+        fit raises :class:`BehaviorError`, which fails the activity.
+        """
+        model = self.PARAMS
+        if not self._templated:
+            if self._fixed is None:
+                self._fixed = model.model_validate(self.params)
+            return self._fixed
+        fields = _fields(model)
+        resolve = self.rt.resolver(self.ud)
+        values = dict(self.params)
+        for key, raw in self._templated.items():
+            value = render(raw, resolve)
+            if value is None or (value == "" and key not in fields.text):
+                if key in fields.required:
+                    values[key] = None
+                else:
+                    del values[key]  # bound to nothing: the default
+            else:
+                values[key] = value
+        try:
+            return model.model_validate(values, context=_BINDING)
+        except ValidationError as error:
+            where, message = _explain(model, error, values)[0]
+            raw = self._templated.get(where or "")
+            source = f" (bound from {raw!r})" if raw is not None else ""
+            raise BehaviorError(f"{self.block_name}: {message}{source}") from None
+
     def bind_params(self) -> None:
-        values: dict[str, Any] = {}
-        for key, spec in self.PARAMS.items():
-            raw = self.params.get(key, spec.default)
-            values[key] = coerce(self.rt.render(raw, self.ud), spec)
-        self.args = values
+        """Set ``self.args`` for this entry (called by :meth:`initialise`)."""
+        self.args = cast(P, self.bound())
 
     def command(
         self,
@@ -139,47 +375,25 @@ class Block(Node):
         return Status.RUNNING
 
 
-def coerce(value: Any, spec: Param) -> Any:
-    """A bound value as the parameter's type (placeholders bind to text)."""
-    if value is None or (value == "" and spec.type != "string"):
-        return spec.default if value is None or spec.type != "string" else value
-    try:
-        if spec.type == "integer" and not isinstance(value, bool):
-            return int(value)
-        if spec.type == "number" and not isinstance(value, bool):
-            return float(value)
-    except (TypeError, ValueError):
-        return spec.default
-    if spec.type == "string" and not isinstance(value, str):
-        return as_text(value)
-    if spec.type == "string_list" and isinstance(value, list):
-        return [as_text(item) for item in value]
-    return value
+class Countdown:
+    """A deadline that survives a pause: the time left is kept while paused and runs
+    on after it. Without seconds it never ends (the state waits to be cancelled)."""
 
+    def __init__(self, now: datetime, seconds: float | None) -> None:
+        self.deadline = now + timedelta(seconds=seconds) if seconds is not None else None
+        self.remaining: float | None = None
 
-def type_ok(value: Any, spec: Param) -> bool:
-    """Whether a value written in a file fits the parameter's type."""
-    if value is None:
-        return spec.nullable or not spec.required
-    if is_single_placeholder(value):
-        return True
-    match spec.type:
-        case "string":
-            ok = isinstance(value, str)
-            return ok and (not spec.enum or value in spec.enum)
-        case "integer":
-            return isinstance(value, int) and not isinstance(value, bool)
-        case "number":
-            return isinstance(value, int | float) and not isinstance(value, bool)
-        case "boolean":
-            return isinstance(value, bool)
-        case "string_list":
-            return isinstance(value, list) and all(isinstance(v, str) for v in value)
-        case "list":
-            return isinstance(value, list)
-        case "mapping":
-            return isinstance(value, dict)
-    return True
+    def pause(self, now: datetime) -> None:
+        if self.deadline is not None:
+            self.remaining = max(0.0, (self.deadline - now).total_seconds())
+
+    def resume(self, now: datetime) -> None:
+        if self.remaining is not None:
+            self.deadline = now + timedelta(seconds=self.remaining)
+            self.remaining = None
+
+    def over(self, now: datetime) -> bool:
+        return self.deadline is not None and now >= self.deadline
 
 
 # ---------------------------------------------------------------- expression blocks
@@ -220,141 +434,163 @@ def speech_args(rt: Runtime, text: str, volume: float | None) -> dict[str, Any]:
     return args
 
 
-class Speak(Block):
+class SpeakParams(BlockParams):
+    text: Text = Field(description="What to say; may use placeholders.")
+    priority: Literal["normal", "high"] = Field(
+        "normal", description="high: said before what else is queued."
+    )
+    volume: float | None = Field(
+        None, description="0-100; by default the VoiceSettings rule decides."
+    )
+
+
+class Speak(Block[SpeakParams]):
     DOC = "Say a sentence; done when the robot has said it."
-    PARAMS: ClassVar[dict[str, Param]] = {
-        "text": Param("string", required=True, doc="What to say; may use placeholders."),
-        "priority": Param("string", default="normal", enum=("normal", "high")),
-        "volume": Param("number", doc="0-100; by default the VoiceSettings rule decides."),
-    }
+    PARAMS = SpeakParams
 
     def begin(self, now: datetime) -> None:
         self.handles = []
-        priority = Priority.HIGH if self.args["priority"] == "high" else Priority.NORMAL
-        args = speech_args(self.rt, self.args["text"], self.args["volume"])
+        priority = Priority.HIGH if self.args.priority == "high" else Priority.NORMAL
+        args = speech_args(self.rt, self.args.text, self.args.volume)
         self.command("speech", "say", args, now, priority)
 
 
-class Show(Block):
+class ShowParams(BlockParams):
+    text: Text = Field("", description="Text to show.")
+    image: Text | None = Field(None, description="An image file to show.")
+    face: str | None = Field(
+        None, description="A face for the screen eyes: happy, closed_eyes, ..."
+    )
+
+
+class Show(Block[ShowParams]):
     DOC = "Show text, an image or a face on the screen."
-    PARAMS: ClassVar[dict[str, Param]] = {
-        "text": Param("string", default=""),
-        "image": Param("string"),
-        "face": Param("string", doc="A face for the screen eyes: happy, closed_eyes, ..."),
-    }
+    PARAMS = ShowParams
 
     def begin(self, now: datetime) -> None:
         self.handles = []
-        args = {k: v for k, v in self.args.items() if v not in (None, "")}
+        args = {k: v for k, v in dict(self.args).items() if v not in (None, "")}
         self.command("screen", "show", args, now)
 
 
-class Gesture(Block):
+class GestureParams(BlockParams):
+    name: str = Field(description="nod, wave, bow, dance_step, ...")
+    duration_s: float | None = Field(None, description="By default the gesture's own.")
+
+
+class Gesture(Block[GestureParams]):
     DOC = "Move: nod, wave, bow, dance_step, ... (durations are the robot's)."
-    PARAMS: ClassVar[dict[str, Param]] = {
-        "name": Param("string", required=True),
-        "duration_s": Param("number"),
-    }
+    PARAMS = GestureParams
 
     def begin(self, now: datetime) -> None:
         self.handles = []
-        args: dict[str, Any] = {"name": self.args["name"]}
-        if self.args["duration_s"] is not None:
-            args["duration_s"] = self.args["duration_s"]
+        args: dict[str, Any] = {"name": self.args.name}
+        if self.args.duration_s is not None:
+            args["duration_s"] = self.args.duration_s
         self.command("motion", "gesture", args, now)
 
 
-class Leds(Block):
+class LedsParams(BlockParams):
+    color: str = Field(description="A colour name or #rrggbb.")
+    pattern: str = Field("solid", description="solid, blink, breathe, ...")
+
+
+class Leds(Block[LedsParams]):
     DOC = "Set the cheek and heart LEDs."
-    PARAMS: ClassVar[dict[str, Param]] = {
-        "color": Param("string", required=True),
-        "pattern": Param("string", default="solid"),
-    }
+    PARAMS = LedsParams
 
     def begin(self, now: datetime) -> None:
         self.handles = []
         self.command("led", "set", dict(self.args), now)
 
 
-class PlayMedia(Block):
+class PlayMediaParams(BlockParams):
+    title: Text = Field(description="What is played, as said and shown.")
+    file: Text | None = Field(None, description="The local media file.")
+    kind: Literal["music", "video", "audio", "photos"] = "music"
+    duration_s: float = Field(60.0, description="How long it plays.")
+
+
+class PlayMedia(Block[PlayMediaParams]):
     DOC = "Play a song, video or photo album from local media; done when it ends."
-    PARAMS: ClassVar[dict[str, Param]] = {
-        "title": Param("string", required=True),
-        "file": Param("string"),
-        "kind": Param("string", default="music", enum=("music", "video", "audio", "photos")),
-        "duration_s": Param("number", default=60.0),
-    }
+    PARAMS = PlayMediaParams
 
     def begin(self, now: datetime) -> None:
         self.handles = []
-        args = {k: v for k, v in self.args.items() if v is not None}
+        args = {k: v for k, v in dict(self.args).items() if v is not None}
         self.command("media", "play", args, now)
 
 
 # ---------------------------------------------------------------- time and events
 
 
-class Wait(Block):
+class WaitParams(BlockParams):
+    seconds: float | None = Field(None, description="How long; null: until cancelled.")
+
+
+class Wait(Block[WaitParams]):
     DOC = "Wait some seconds (null: until cancelled); the time left survives a pause."
-    PARAMS: ClassVar[dict[str, Param]] = {"seconds": Param("number", nullable=True)}
+    PARAMS = WaitParams
 
     def begin(self, now: datetime) -> None:
-        seconds = self.args["seconds"]
-        self.deadline = now + timedelta(seconds=seconds) if seconds is not None else None
-        self.remaining: float | None = None
+        self.countdown = Countdown(now, self.args.seconds)
 
     def on_pause(self, now: datetime) -> None:
-        if self.deadline is not None:
-            self.remaining = max(0.0, (self.deadline - now).total_seconds())
+        self.countdown.pause(now)
 
     def on_resume(self, now: datetime) -> None:
-        if self.remaining is not None:
-            self.deadline = now + timedelta(seconds=self.remaining)
-            self.remaining = None
+        self.countdown.resume(now)
 
     def update(self, now: datetime) -> Status:
-        if self.deadline is not None and now >= self.deadline:
+        if self.countdown.over(now):
             return self.finish("done")
         return Status.RUNNING
 
 
-class WaitEvent(Wait):
+class WaitEventParams(BlockParams):
+    touch: list[str] = Field([], description="Touched parts that end the wait.")
+    keywords: list[str] = Field([], description="Words or phrases said that end it.")
+    screen: list[str] = Field([], description="Screen choices that end it.")
+    timeout_s: float | None = Field(None, description="Then the outcome is timeout.")
+    key: str | None = Field(None, description="Userdata key that receives what happened.")
+
+
+class WaitEvent(Block[WaitEventParams]):
     DOC = "Wait for a touch, a spoken keyword or a screen choice (or a timeout)."
     OUTCOMES = ("event", "timeout")
-    PARAMS: ClassVar[dict[str, Param]] = {
-        "touch": Param("string_list", default=[]),
-        "keywords": Param("string_list", default=[]),
-        "screen": Param("string_list", default=[]),
-        "timeout_s": Param("number", nullable=True),
-        "key": Param("string", doc="Userdata key that receives what happened."),
-    }
+    PARAMS = WaitEventParams
 
     def begin(self, now: datetime) -> None:
-        self.args["seconds"] = self.args["timeout_s"]
-        super().begin(now)
+        self.countdown = Countdown(now, self.args.timeout_s)
         self.got: str | None = None
+
+    def on_pause(self, now: datetime) -> None:
+        self.countdown.pause(now)
+
+    def on_resume(self, now: datetime) -> None:
+        self.countdown.resume(now)
 
     def on_event(self, event: Event) -> bool:
         if self.got is not None:
             return False
-        if isinstance(event, Touch) and event.part in self.args["touch"]:
+        if isinstance(event, Touch) and event.part in self.args.touch:
             self.got = event.part
         elif isinstance(event, ScreenChoice):
-            wanted = {s.lower() for s in self.args["screen"]}
+            wanted = {s.lower() for s in self.args.screen}
             if event.choice.strip().lower() in wanted:
                 self.got = event.choice
         elif isinstance(event, Speech):
             spoken = _words(event.text)
-            hit = next((k for k in self.args["keywords"] if _words(k) in spoken), None)
+            hit = next((k for k in self.args.keywords if _words(k) in spoken), None)
             self.got = hit
         return self.got is not None
 
     def update(self, now: datetime) -> Status:
         if self.got is not None:
-            if self.args["key"]:
-                self.ud[self.args["key"]] = self.got
+            if self.args.key:
+                self.ud[self.args.key] = self.got
             return self.finish("event")
-        if super().update(now) is Status.DONE:
+        if self.countdown.over(now):
             return self.finish("timeout")
         return Status.RUNNING
 
@@ -374,22 +610,28 @@ def match_answer(text: str, choices: Sequence[str]) -> str | None:
     return best
 
 
-class Ask(Block):
+class AskParams(BlockParams):
+    question: Text = Field(description="What is asked (said, and shown with its choices).")
+    choices: list[Text] = Field([], description="The answers taken; none: any answer.")
+    correct: Text | None = Field(
+        None, description="The right choice: the outcome is then correct or wrong."
+    )
+    branch: bool = Field(False, description="true: the outcome is the choice itself.")
+    timeout_s: float = Field(12.0, description="Asked again after this long without answer.")
+    attempts: int = Field(2, description="How many times it is asked at most.")
+    key: str = Field("answer", description="Userdata key that receives the answer.")
+    retry_text: Text = Field(
+        "Sorry, I did not get that.", description="Said before asking again when misheard."
+    )
+
+
+class Ask(Block[AskParams]):
     DOC = (
         "Ask a question (said, and shown with its choices); take the answer by speech or "
         "screen; re-ask after a timeout, up to `attempts` times. With `correct`, the outcome "
         "says whether the answer was right; with `branch`, the outcome is the choice."
     )
-    PARAMS: ClassVar[dict[str, Param]] = {
-        "question": Param("string", required=True),
-        "choices": Param("string_list", default=[]),
-        "correct": Param("string"),
-        "branch": Param("boolean", default=False),
-        "timeout_s": Param("number", default=12.0),
-        "attempts": Param("integer", default=2),
-        "key": Param("string", default="answer", doc="Userdata key that receives the answer."),
-        "retry_text": Param("string", default="Sorry, I did not get that."),
-    }
+    PARAMS: ClassVar[type[BlockParams]] = AskParams
 
     @classmethod
     def outcomes_for(cls, params: Mapping[str, Any]) -> tuple[str, ...]:
@@ -407,10 +649,10 @@ class Ask(Block):
         super().initialise(now)
 
     def prompt(self) -> str:
-        return str(self.args["question"])
+        return self.args.question
 
     def choices(self) -> list[str]:
-        return list(self.args["choices"] or [])
+        return list(self.args.choices)
 
     def begin(self, now: datetime) -> None:
         self.withdraw(now)
@@ -418,7 +660,7 @@ class Ask(Block):
         self.deadline: datetime | None = None
         text = self.prompt()
         if self.misheard:
-            text = f"{self.args['retry_text']} {text}"
+            text = f"{self.args.retry_text} {text}"
             self.misheard = False
         if self.choices() and self.rt.ctx.params().get("user", {}).get("interaction_style") == (
             "screen"
@@ -462,23 +704,36 @@ class Ask(Block):
             self.withdraw(now)
             return self.finish(self.answered(self.answer))
         if self.deadline is None and self.said.finished:
-            self.deadline = now + timedelta(seconds=float(self.args["timeout_s"]))
+            self.deadline = now + timedelta(seconds=self.args.timeout_s)
         timed_out = self.deadline is not None and now >= self.deadline
         if self.misheard or timed_out:
-            if self.attempt >= int(self.args["attempts"]):
+            if self.attempt >= self.args.attempts:
                 self.withdraw(now)
                 return self.finish("no_answer")
             self.begin(now)
         return Status.RUNNING
 
     def answered(self, answer: str) -> str:
-        self.ud[self.args["key"]] = answer
-        if self.args["branch"]:
+        self.ud[self.args.key] = answer
+        if self.args.branch:
             return answer
-        correct = self.args["correct"]
+        correct = self.args.correct
         if correct is not None:
-            return "correct" if answer.strip().lower() == str(correct).lower() else "wrong"
+            return "correct" if answer.strip().lower() == correct.lower() else "wrong"
         return "answered"
+
+
+class MenuParams(BlockParams):
+    title: Text = Field("What would you like to do?", description="The question asked.")
+    options: list[str] = Field(
+        list(USER_SELECTABLE), description="The activities offered (by their names)."
+    )
+    timeout_s: float = Field(20.0, description="Asked again after this long without answer.")
+    attempts: int = Field(2, description="How many times it is asked at most.")
+    key: str = Field("choice", description="Userdata key that receives the choice.")
+    retry_text: Text = Field(
+        "Sorry, which one?", description="Said before asking again when misheard."
+    )
 
 
 class Menu(Ask):
@@ -489,25 +744,23 @@ class Menu(Ask):
         "to the robot."
     )
     OUTCOMES = ("chosen", "declined", "no_answer")
-    PARAMS: ClassVar[dict[str, Param]] = {
-        "title": Param("string", default="What would you like to do?"),
-        "options": Param("string_list", default=list(USER_SELECTABLE)),
-        "timeout_s": Param("number", default=20.0),
-        "attempts": Param("integer", default=2),
-        "key": Param("string", default="choice"),
-        "retry_text": Param("string", default="Sorry, which one?"),
-    }
+    PARAMS = MenuParams
 
     @classmethod
     def outcomes_for(cls, params: Mapping[str, Any]) -> tuple[str, ...]:
         return cls.OUTCOMES
 
     def bind_params(self) -> None:
-        super().bind_params()
-        self.args["question"] = self.args["title"]
-        self.args["choices"] = self.args["options"]
-        self.args["branch"] = False
-        self.args["correct"] = None
+        """The menu is an ask question made of the menu's parameters."""
+        menu = cast(MenuParams, self.bound())
+        self.args = AskParams.model_construct(
+            question=menu.title,
+            choices=list(menu.options),
+            timeout_s=menu.timeout_s,
+            attempts=menu.attempts,
+            key=menu.key,
+            retry_text=menu.retry_text,
+        )
 
     def interpret(self, event: Event) -> str | None:
         options = self.choices()
@@ -538,7 +791,7 @@ class Menu(Ask):
     def answered(self, answer: str) -> str:
         if answer == DECLINED:
             return "declined"
-        self.ud[self.args["key"]] = answer
+        self.ud[self.args.key] = answer
         self.rt.redirect = answer
         return "chosen"
 
@@ -569,16 +822,18 @@ def declines(text: str) -> bool:
 # ---------------------------------------------------------------- decisions and data
 
 
-class Decide(Block):
+class DecideParams(BlockParams):
+    component: str = Field(description="The DMSL component whose activation decides.")
+    outcomes: list[str] = Field(description="The outcomes (activations taken).")
+    default: str = Field("random", description="An outcome, or random.")
+
+
+class Decide(Block[DecideParams]):
     DOC = (
         "Outcome = the first activation of a DMSL component that is one of `outcomes`; "
         "`default` (an outcome, or `random`) when no rule defines it or it activates none."
     )
-    PARAMS: ClassVar[dict[str, Param]] = {
-        "component": Param("string", required=True),
-        "outcomes": Param("string_list", required=True),
-        "default": Param("string", default="random"),
-    }
+    PARAMS = DecideParams
 
     @classmethod
     def outcomes_for(cls, params: Mapping[str, Any]) -> tuple[str, ...]:
@@ -589,49 +844,53 @@ class Decide(Block):
         outcomes = list(self.outcomes)
         rules = self.rt.ctx.rules
         result = (
-            rules.evaluate(self.args["component"], self.rt.ctx.params())
-            if rules is not None
-            else None
+            rules.evaluate(self.args.component, self.rt.ctx.params()) if rules is not None else None
         )
         if result is not None:
             for activation in result.activate:
                 if activation in outcomes:
                     self.ud["decision"] = activation
                     return self.finish(activation)
-        default = self.args["default"]
+        default = self.args.default
         choice = self.rt.ctx.rng.choice(outcomes) if default == "random" else default
         self.ud["decision"] = choice
         return self.finish(choice)
 
 
-class SetParam(Block):
+class SetParamParams(BlockParams):
+    name: str = Field(description="The profile parameter.")
+    value: Any = Field(description="Its new value.")
+
+
+class SetParam(Block[SetParamParams]):
     DOC = "Store a value in the present user's profile."
-    PARAMS: ClassVar[dict[str, Param]] = {
-        "name": Param("string", required=True),
-        "value": Param("any", required=True),
-    }
+    PARAMS = SetParamParams
 
     def update(self, now: datetime) -> Status:
-        self.rt.ctx.set_user_param(self.args["name"], self.args["value"])
+        # a copy: the value as written is shared by every entry of the state
+        self.rt.ctx.set_user_param(self.args.name, copy.deepcopy(self.args.value))
         return self.finish("done")
 
 
-class SetData(Block):
+class SetDataParams(BlockParams):
+    values: dict[str, Any] = Field({}, description="Keys set to these values.")
+    add: dict[str, Any] = Field({}, description="Numbers added to these keys.")
+    append: dict[str, Any] = Field({}, description="Values appended to these lists.")
+
+
+class SetData(Block[SetDataParams]):
     DOC = "Change userdata: `values` sets keys, `add` adds numbers, `append` appends to lists."
-    PARAMS: ClassVar[dict[str, Param]] = {
-        "values": Param("mapping", default={}),
-        "add": Param("mapping", default={}),
-        "append": Param("mapping", default={}),
-    }
+    PARAMS = SetDataParams
 
     def update(self, now: datetime) -> Status:
-        for key, value in (self.args["values"] or {}).items():
-            self.ud[key] = value
-        for key, amount in (self.args["add"] or {}).items():
+        # copies: the values as written are shared by every entry of the state
+        for key, value in self.args.values.items():
+            self.ud[key] = copy.deepcopy(value)
+        for key, amount in self.args.add.items():
             current = self.ud.get(key, 0)
             self.ud[key] = _number(current) + _number(amount)
-        for key, value in (self.args["append"] or {}).items():
-            self.ud[key] = [*list(self.ud.get(key, []) or []), value]
+        for key, value in self.args.append.items():
+            self.ud[key] = [*list(self.ud.get(key, []) or []), copy.deepcopy(value)]
         return self.finish("done")
 
 
@@ -647,53 +906,60 @@ def _number(value: Any) -> float | int:
             return 0
 
 
-class Sample(Block):
+class SampleParams(BlockParams):
+    items: list[Any] | None = Field(
+        None, description="A list, or a placeholder such as {content.quiz.questions}."
+    )
+    range: list[int] | None = Field(None, description="[first, last] instead of items.")
+    count: int | None = Field(None, description="How many; null: all, shuffled.")
+    key: str = Field(description="Userdata key that receives the list drawn.")
+
+
+class Sample(Block[SampleParams]):
     DOC = "Draw `count` items at random (all, shuffled, when null) into userdata `key`."
-    PARAMS: ClassVar[dict[str, Param]] = {
-        "items": Param("any", doc="A list, or a placeholder such as {content.quiz.questions}."),
-        "range": Param("list", doc="[first, last] integers instead of items."),
-        "count": Param("integer", nullable=True),
-        "key": Param("string", required=True),
-    }
+    PARAMS = SampleParams
 
     def update(self, now: datetime) -> Status:
-        span = self.args["range"]
-        if isinstance(span, list) and len(span) == 2:
-            pool: list[Any] = list(range(int(span[0]), int(span[1]) + 1))
+        span = self.args.range
+        if span is not None and len(span) == 2:
+            pool: list[Any] = list(range(span[0], span[1] + 1))
         else:
-            items = self.args["items"]
-            pool = list(items) if isinstance(items, list) else []
+            pool = list(self.args.items or [])
         if not pool:
             return self.fail("nothing to draw from")
-        count = self.args["count"]
-        count = len(pool) if count is None else max(0, min(int(count), len(pool)))
-        self.ud[self.args["key"]] = self.rt.ctx.rng.sample(pool, count)
+        count = self.args.count
+        count = len(pool) if count is None else max(0, min(count, len(pool)))
+        self.ud[self.args.key] = self.rt.ctx.rng.sample(pool, count)
         return self.finish("done")
 
 
-class Check(Block):
+class CheckParams(BlockParams):
+    value: Any = Field(description="What is tested (usually a placeholder).")
+    in_: Any = Field(None, alias="in", description="met if value is one of these.")
+    all_in: Any = Field(None, description="met if every item of value is one of these.")
+    equals: Any = Field(None, description="met if value equals this.")
+    at_least: float | None = Field(None, description="met if value is at least this.")
+
+
+class Check(Block[CheckParams]):
     DOC = "Test userdata: `value` in `in`, all of `value` in `all_in`, equal, or at least."
     OUTCOMES = ("met", "not_met")
-    PARAMS: ClassVar[dict[str, Param]] = {
-        "value": Param("any", required=True),
-        "in": Param("any"),
-        "all_in": Param("any"),
-        "equals": Param("any"),
-        "at_least": Param("number"),
-    }
+    PARAMS = CheckParams
 
     def update(self, now: datetime) -> Status:
-        value = self.args["value"]
+        args = self.args
+        value = args.value
         tests: list[Callable[[], bool]] = []
-        if self.args["in"] is not None:
-            tests.append(lambda: _norm(value) in [_norm(v) for v in _list(self.args["in"])])
-        if self.args["all_in"] is not None:
-            among = {_norm(v) for v in _list(self.args["all_in"])}
+        if args.in_ is not None:
+            tests.append(lambda: _norm(value) in [_norm(v) for v in _list(args.in_)])
+        if args.all_in is not None:
+            among = {_norm(v) for v in _list(args.all_in)}
             tests.append(lambda: all(_norm(v) in among for v in _list(value)))
-        if self.args["equals"] is not None:
-            tests.append(lambda: _norm(value) == _norm(self.args["equals"]))
-        if self.args["at_least"] is not None:
-            tests.append(lambda: _number(value) >= float(self.args["at_least"]))
+        if args.equals is not None:
+            tests.append(lambda: _norm(value) == _norm(args.equals))
+        if args.at_least is not None:
+            at_least = args.at_least
+            tests.append(lambda: _number(value) >= at_least)
         return self.finish("met" if all(test() for test in tests) else "not_met")
 
 
@@ -705,7 +971,7 @@ def _norm(value: Any) -> str:
     return as_text(value).strip().lower()
 
 
-BLOCKS: dict[str, type[Block]] = {
+BLOCKS: dict[str, type[Block[Any]]] = {
     "speak": Speak,
     "ask": Ask,
     "show": Show,

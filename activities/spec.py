@@ -19,6 +19,10 @@ Each state has exactly one block key (a building block of :mod:`activities.block
 or a container: ``state_machine``, ``concurrence``, ``iterator``, ``guard``,
 ``behavior``) plus optional ``transitions``, ``input_keys``, ``output_keys`` and
 ``remapping``. Problems are reported as ``file:line: state PATH: message``.
+
+The parameters of blocks and containers are pydantic models (:class:`BlockParams`, the
+blocks' beside them in :mod:`activities.blocks`, the containers' here): the loader's
+parameter checks and :func:`json_schema` both come from them.
 """
 
 from __future__ import annotations
@@ -28,14 +32,15 @@ import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import yaml
+from pydantic import Field
 
-from activities.blocks import BLOCKS, Param, type_ok
+from activities.blocks import BLOCKS, BlockParams, accepts_any_string, param_problems
 from activities.engine import PREEMPTED
 from activities.errors import BehaviorError
-from activities.template import is_single_placeholder
+from activities.template import PLACEHOLDER
 from dms.kernel.yamlfile import Located, load_located, plain
 from dms.kernel.yamlfile import line_of_key as _line
 
@@ -47,52 +52,91 @@ GROUPS = (*MACHINES, "concurrence")
 STATE_KEYS = ("transitions", "input_keys", "output_keys", "remapping")
 TOP_KEYS = ("name", "description", "outcomes", "initial", "userdata", "states")
 
-CONTAINER_PARAMS: dict[str, dict[str, Param]] = {
-    "state_machine": {
-        "outcomes": Param("string_list", required=True),
-        "initial": Param("string"),
-        "userdata": Param("mapping"),
-        "states": Param("mapping", required=True),
-    },
-    "sequence": {
-        "outcomes": Param("string_list", required=True),
-        "connector_outcome": Param(
-            "string", required=True, doc="The outcome that goes on to the next state."
-        ),
-        "userdata": Param("mapping"),
-        "states": Param("mapping", required=True),
-    },
-    "concurrence": {
-        "outcomes": Param("string_list", required=True),
-        "default_outcome": Param("string", required=True),
-        "outcome_map": Param("mapping", default={}),
-        "wait": Param(
-            "string",
-            default="match",
-            doc="When the other states are preempted: match (an outcome_map entry "
-            "matched), any (a state ended) or all (never: SMACH's default).",
-        ),
-        "userdata": Param("mapping"),
-        "states": Param("mapping", required=True),
-    },
-    "iterator": {
-        "items": Param("any", required=True, doc="A list, a count, or a placeholder."),
-        "item_key": Param("string", default="item"),
-        "index_key": Param("string"),
-        "continue_on": Param("string_list", required=True),
-        "break_on": Param("mapping", default={}),
-        "exhausted": Param("string", default="done"),
-        "state": Param("mapping", required=True),
-    },
-    "guard": {
-        "touch": Param("string_list", default=[]),
-        "keywords": Param("string_list", default=[]),
-        "screen": Param("string_list", default=[]),
-        "timer_s": Param("number"),
-        "outcome": Param("string", default="triggered"),
-        "state": Param("mapping", required=True),
-    },
-    "behavior": {"name": Param("string", required=True)},
+
+class StateMachineParams(BlockParams):
+    """A nested state machine."""
+
+    PLACEHOLDERS = frozenset()
+
+    outcomes: list[str] = Field(description="How the machine can end.")
+    initial: str | None = Field(None, description="The first state; by default the first listed.")
+    userdata: dict[str, Any] = Field({}, description="The machine's own userdata at start.")
+    states: dict[str, Any] = Field(description="The states, by name.")
+
+
+class SequenceParams(BlockParams):
+    """States in the order written (SMACH's Sequence)."""
+
+    PLACEHOLDERS = frozenset()
+
+    outcomes: list[str] = Field(description="How the sequence can end.")
+    connector_outcome: str = Field(description="The outcome that goes on to the next state.")
+    userdata: dict[str, Any] = Field({}, description="The sequence's own userdata at start.")
+    states: dict[str, Any] = Field(description="The states, in order.")
+
+
+class ConcurrenceParams(BlockParams):
+    """States ticked together."""
+
+    PLACEHOLDERS = frozenset()
+
+    outcomes: list[str] = Field(description="How the concurrence can end.")
+    default_outcome: str = Field(description="When all have ended and no entry matched.")
+    outcome_map: dict[str, Any] = Field(
+        {}, description="outcome: {state: its outcome, ...}, read in order."
+    )
+    wait: Literal["match", "any", "all"] = Field(
+        "match",
+        description="When the other states are preempted: match (an outcome_map entry "
+        "matched), any (a state ended) or all (never: SMACH's default).",
+    )
+    userdata: dict[str, Any] = Field({}, description="The concurrence's own userdata.")
+    states: dict[str, Any] = Field(description="The states, by name.")
+
+
+class IteratorParams(BlockParams):
+    """One state run once per item."""
+
+    PLACEHOLDERS = frozenset({"items"})
+
+    items: list[Any] | int = Field(description="A list, a count, or a placeholder.")
+    item_key: str = Field("item", description="Userdata key of the current item.")
+    index_key: str | None = Field(None, description="Userdata key of its index, from 1.")
+    continue_on: list[str] = Field(description="Outcomes that go on to the next item.")
+    break_on: dict[str, str] = Field({}, description="Outcomes that end it: state's: ours.")
+    exhausted: str = Field("done", description="The outcome after the last item.")
+    state: dict[str, Any] = Field(description="The one state, by name.")
+
+
+class GuardParams(BlockParams):
+    """ROS Commander's tactile guard: a touch, a keyword, a screen choice or a timer
+    ends the state inside with ``outcome``."""
+
+    PLACEHOLDERS = frozenset()
+
+    touch: list[str] = Field([], description="Touched parts that end it.")
+    keywords: list[str] = Field([], description="Words or phrases said that end it.")
+    screen: list[str] = Field([], description="Screen choices that end it.")
+    timer_s: float | None = Field(None, description="Seconds after which it ends.")
+    outcome: str = Field("triggered", description="The outcome then.")
+    state: dict[str, Any] = Field(description="The one state guarded, by name.")
+
+
+class BehaviorParams(BlockParams):
+    """Another behavior file as a state."""
+
+    PLACEHOLDERS = frozenset()
+
+    name: str = Field(description="The behavior's name.")
+
+
+CONTAINER_PARAMS: dict[str, type[BlockParams]] = {
+    "state_machine": StateMachineParams,
+    "sequence": SequenceParams,
+    "concurrence": ConcurrenceParams,
+    "iterator": IteratorParams,
+    "guard": GuardParams,
+    "behavior": BehaviorParams,
 }
 
 
@@ -254,31 +298,22 @@ def parse_file(path: Path) -> BehaviorSpec:
 
 
 def _check_params(
-    checker: _Checker, path: str, block: str, params: Any, specs: dict[str, Param], line: int
+    checker: _Checker,
+    path: str,
+    block: str,
+    params: Any,
+    model: type[BlockParams],
+    line: int,
 ) -> dict[str, Any]:
+    """The parameters as written, each problem the model finds reported at its line."""
     if params is None:
         params = {}
     if not isinstance(params, dict):
         checker.problem(line, path, f"{block}: parameters must be a mapping")
         return {}
-    for key, value in params.items():
-        spec = specs.get(key)
-        if spec is None:
-            known = ", ".join(specs)
-            checker.problem(
-                _line(params, key), path, f"{block}: unknown parameter {key!r} ({known})"
-            )
-        elif not type_ok(value, spec):
-            expected = spec.type + (f" one of {list(spec.enum)}" if spec.enum else "")
-            checker.problem(
-                _line(params, key),
-                path,
-                f"{block}: parameter {key!r} must be {expected}, not {type(value).__name__}"
-                f" {value!r}"[:200],
-            )
-    for key, spec in specs.items():
-        if spec.required and key not in params:
-            checker.problem(line, path, f"{block}: missing parameter {key!r}")
+    for key, message in param_problems(model, plain(params)):
+        at = _line(params, key) if key in params else line
+        checker.problem(at, path, f"{block}: {message}")
     return params
 
 
@@ -290,8 +325,7 @@ def _parse_state(
     if block in BLOCKS:
         checked = _check_params(checker, path, block, params, BLOCKS[block].PARAMS, line)
         return StateSpec(name, block, plain(checked), line=line)
-    specs = CONTAINER_PARAMS[block]
-    checked = _check_params(checker, path, block, params, specs, line)
+    checked = _check_params(checker, path, block, params, CONTAINER_PARAMS[block], line)
     children: dict[str, StateSpec] = {}
     child_key = "states" if block in GROUPS else "state"
     raw_children = checked.get(child_key)
@@ -311,8 +345,6 @@ def _parse_state(
     own = {k: plain(v) for k, v in checked.items() if k != child_key}
     if block == "sequence":
         _connect(children, own.get("connector_outcome"))
-    if block == "concurrence" and own.get("wait", "match") not in ("match", "any", "all"):
-        checker.problem(line, path, "concurrence: wait must be match, any or all")
     return StateSpec(name, block, own, states=children, line=line)
 
 
@@ -457,11 +489,6 @@ def _check_machine(checker: _Checker, state: StateSpec, path: str) -> None:
                         prefix + name,
                         f"outcome {outcome!r} is neither in continue_on nor in break_on",
                     )
-        items = state.params.get("items")
-        if not (isinstance(items, list | int) or is_single_placeholder(items)):
-            checker.problem(
-                state.line, path, "iterator: items must be a list, a count or a placeholder"
-            )
     for name, child in state.states.items():
         _check_machine(checker, child, prefix + name)
 
@@ -537,59 +564,57 @@ def _check_reference_outcomes(spec: BehaviorSpec, specs: Mapping[str, BehaviorSp
 # ---------------------------------------------------------------- JSON Schema
 
 
-def _param_schema(spec: Param) -> dict[str, Any]:
-    placeholder = {"type": "string", "pattern": r"^\s*\{[A-Za-z_][\w.]*(\|[^{}]*)?\}\s*$"}
-    base: dict[str, Any]
-    match spec.type:
-        case "string":
-            base = {"type": "string"}
-            if spec.enum:
-                base["enum"] = list(spec.enum)
-        case "integer" | "number" | "boolean":
-            base = {"anyOf": [{"type": spec.type}, placeholder]}
-        case "string_list":
-            base = {"anyOf": [{"type": "array", "items": {"type": "string"}}, placeholder]}
-        case "list":
-            base = {"anyOf": [{"type": "array"}, placeholder]}
-        case "mapping":
-            base = {"type": "object"}
-        case _:
-            base = {}
-    if spec.nullable and base:
-        base = {"anyOf": [base, {"type": "null"}]}
-    if spec.doc:
-        base["description"] = spec.doc
-    return base
+PLACEHOLDER_SCHEMA = {"type": "string", "pattern": rf"^\s*{PLACEHOLDER.pattern}\s*$"}
+"""A value that is exactly one placeholder: allowed for a parameter of any type."""
+
+
+def _written(prop: dict[str, Any], bound: bool) -> dict[str, Any]:
+    """A parameter's JSON Schema as pydantic makes it, as a file may write it: with a
+    placeholder allowed if it is ``bound`` on entry, without pydantic's titles, the
+    description and default last."""
+    core = {k: v for k, v in prop.items() if k not in ("title", "description", "default")}
+    notes: dict[str, Any] = {k: prop[k] for k in ("description", "default") if k in prop}
+    if bound and not accepts_any_string(core):
+        options = core["anyOf"] if set(core) == {"anyOf"} else [core]
+        core = {"anyOf": [*options, PLACEHOLDER_SCHEMA]}
+    return {**core, **notes}
+
+
+def _params_schema(model: type[BlockParams]) -> dict[str, Any]:
+    """The JSON Schema of a block's (or container's) parameters, from its model."""
+    generated = model.model_json_schema()
+    assert "$defs" not in generated, f"{model.__name__}: nested models are not supported"
+    props: dict[str, Any] = {}
+    for key, prop in generated["properties"].items():
+        if key == "states":
+            props[key] = {"type": "object", "additionalProperties": {"$ref": "#/$defs/state"}}
+        elif key == "state":
+            props[key] = {
+                "type": "object",
+                "additionalProperties": {"$ref": "#/$defs/state"},
+                "minProperties": 1,
+                "maxProperties": 1,
+            }
+        else:
+            props[key] = _written(prop, model.may_bind(key))
+    return {
+        "type": "object",
+        "properties": props,
+        "required": generated.get("required", []),
+        "additionalProperties": False,
+    }
 
 
 def json_schema() -> dict[str, Any]:
     """The published JSON Schema of behavior files (``dms behavior schema``)."""
     state_variants = []
     names = {"type": "array", "items": {"type": "string"}}
-    for block, specs in [
+    for block, model in [
         *((b, cls.PARAMS) for b, cls in BLOCKS.items()),
         *CONTAINER_PARAMS.items(),
     ]:
-        props: dict[str, Any] = {}
-        for key, spec in specs.items():
-            if key in ("states",):
-                props[key] = {"type": "object", "additionalProperties": {"$ref": "#/$defs/state"}}
-            elif key == "state":
-                props[key] = {
-                    "type": "object",
-                    "additionalProperties": {"$ref": "#/$defs/state"},
-                    "minProperties": 1,
-                    "maxProperties": 1,
-                }
-            else:
-                props[key] = _param_schema(spec)
-        body = {
-            "type": "object",
-            "properties": props,
-            "required": [k for k, s in specs.items() if s.required],
-            "additionalProperties": False,
-        }
-        doc = BLOCKS[block].DOC if block in BLOCKS else f"Container: {block}."
+        body = _params_schema(model)
+        doc = BLOCKS[block].DOC if block in BLOCKS else f"Container: {block}. {model.__doc__}"
         state_variants.append(
             {
                 "type": "object",
