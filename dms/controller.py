@@ -26,7 +26,10 @@ import random
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
-from typing import Any, Generic, TypeVar
+from functools import partial
+from typing import Any, Generic, Literal, TypeVar
+
+import numpy as np
 
 from activities import ActivityContext, BehaviorLibrary, reload_rules_and_behaviors
 from activities.synonyms import match_activity, requests_activity
@@ -78,6 +81,9 @@ from motivation import MotivationModel, MotivationState, Percepts, Stimuli, simu
 
 log = logging.getLogger(__name__)
 _T = TypeVar("_T")
+
+_ActivityParts = tuple[str, str, Literal["running", "paused"], str]
+"""An ActivityState's fields taken at a tick: name, manager, status, state path."""
 
 NO_FEEDBACK_FOR = frozenset({"menu", "notification", "sleep", "wait", "instructions"})
 """Activities after which the robot does not ask how much the user liked them."""
@@ -137,6 +143,10 @@ class TickRecord:
     lazy_motivation: _Lazy[MotivationSnapshot] = field(repr=False, compare=False)
     activity: str | None = None
     """``state.activity.name``: the current activity (running or paused), if any."""
+    motivation_state: MotivationState | None = field(default=None, repr=False, compare=False)
+    """The motivation model's own state after the tick, of which ``motivation`` is the
+    snapshot: a reader that wants a few numbers every tick (the long-term tracker) takes
+    them from it with the model, without the snapshot's model (issue 14)."""
 
     @property
     def state(self) -> DmsState:
@@ -242,6 +252,8 @@ class Controller:
         self._last_step: datetime | None = None
         self._motivation: MotivationState | None = None
         self._percepts: Percepts | None = None
+        self._seen: tuple[object, ...] = ()
+        """The fields of ``_percepts``, as a tuple (Percepts compare the same way)."""
         self._stimuli: Stimuli | None = None
         self.current: Running | None = None
         self.suspended: Running | None = None
@@ -275,50 +287,88 @@ class Controller:
         user = snapshot.values.get(keys.PERCEPTION_USER)
         self._user = user if isinstance(user, UserPerception) else None
         self._touches = []
-        guard = self._barrier.step
         self._handle_events(snapshot, now)
-        with guard("motivation", self._user):
+        # Each step is guarded by a plain ``try`` (free in Python 3.11 while nothing
+        # raises) instead of a ``with`` of the fault barrier: nine steps a tick were a
+        # tenth of its cost. A fault is contained as the barrier does it (_contain).
+        try:
             self._step_motivation(snapshot, now)
-        with guard("robot"):
+        except Exception as error:
+            self._contain("motivation", self._user, error)
+        try:
             if self.deps.scene is not None:
                 self.deps.scene.update(snapshot.values, snapshot.fresh, now)
             self.deps.expression.update(now)
             self._robot_blocked = self._robot_unreachable(now)
+        except Exception as error:
+            self._contain("robot", None, error)
         if self.deps.profiles is not None:
-            with guard("memory"):
+            try:
                 self.deps.profiles.retry(now)
-        with guard("user", self._user):
+            except Exception as error:
+                self._contain("memory", None, error)
+        try:
             self._track_user(now)
-        with guard("dialog", self.dialog and self.dialog.kind.value) as outcome:
-            self._advance_dialog(now)
-        if outcome.failed:
-            self._drop_dialog(now)
+        except Exception as error:
+            self._contain("user", self._user, error)
+        dialog = self.dialog
+        if dialog is not None:
+            try:
+                self._advance_dialog(now)
+            except Exception as error:
+                self._contain("dialog", dialog.kind.value, error)
+                self._drop_dialog(now)
         if self._cleaning:
-            with guard("cleanup"):
+            try:
                 self._wind_down(now)
+            except Exception as error:
+                self._contain("cleanup", None, error)
         if self.dialog is None:
-            with guard("activity", self.current and self.current.name) as outcome:
-                self._tick_activities(now)
-            if outcome.failed:
-                self._abandon_current(now, "activity")
-            if self.current is not None:
-                with guard("cancel", self.current.name) as outcome:
+            running = self.current
+            if running is not None:
+                try:
+                    self._tick_activities(now)
+                except Exception as error:
+                    self._contain("activity", running.name, error)
+                    self._abandon_current(now, "activity")
+            running = self.current
+            if running is not None:
+                try:
                     self._check_cancel_reasons(now)
-                if outcome.failed:
+                except Exception as error:
+                    self._contain("cancel", running.name, error)
                     self._abandon_current(now, "cancel")
             if self.current is None and self.dialog is None:
-                with guard("choose", self._ready_user()):
+                try:
                     self._choose(now)
-        if self._session is not None and self._session.account is not None:
-            with guard("metrics"):  # after the sends of this tick: see SessionAccount.on_tick
-                self._session.account.on_tick(now, self.deps.expression.pending)
+                except Exception as error:
+                    self._contain("choose", self._ready_user(), error)
+        session = self._session
+        if session is not None and session.account is not None:
+            try:  # after the sends of this tick: see SessionAccount.on_tick
+                session.account.on_tick(now, self.deps.expression.pending)
+            except Exception as error:
+                self._contain("metrics", None, error)
         state, motivation = self._state_of(now)
         self._lazy_state = state
         self.counters.decisions += len(self._decisions)
         current = self.current.name if self.current is not None else None
         return TickRecord(
-            self._tick, now, urgent, tuple(self._decisions), state, motivation, current
+            self._tick,
+            now,
+            urgent,
+            tuple(self._decisions),
+            state,
+            motivation,
+            current,
+            self._motivation,
         )
+
+    def _contain(self, step: str, subject: object, error: Exception) -> None:
+        """Contain ``error``, raised by the tick's ``step`` working on ``subject``, exactly
+        as a ``with`` of :meth:`FaultBarrier.step` does: logged, reported, the loop goes on."""
+        with self._barrier.step(step, subject):
+            raise error
 
     def shutdown(self, now: datetime) -> TickRecord:
         """Stop what runs (SIGINT/SIGTERM): cancel the activity and any suspended one."""
@@ -351,17 +401,19 @@ class Controller:
         dt = (now - self._last_step).total_seconds() if self._last_step else 0.0
         if dt <= 0:
             return
-        user_ok = keys.PERCEPTION_USER in snapshot.values
-        percepts = Percepts(
-            user_present=(self._user.present if self._user else False) if user_ok else None,
-            engagement=self._user.engagement if self._user else None,
-            env=snapshot.env_params if keys.PARAMS_ENV in snapshot.values else None,
-            touches=tuple(self._touches),
+        user, values = self._user, snapshot.values
+        seen = (  # Percepts' fields: the object is made only when they change
+            (user.present if user else False) if keys.PERCEPTION_USER in values else None,
+            user.engagement if user else None,
+            snapshot.env_params if keys.PARAMS_ENV in values else None,
+            tuple(self._touches),
         )
-        if percepts != self._percepts or self._stimuli is None:
-            self._stimuli = model.stimuli(percepts)  # the room rarely changes between ticks
         stimuli = self._stimuli
-        self._percepts = percepts
+        if seen != self._seen or stimuli is None:
+            self._percepts = Percepts(*seen)
+            # the room rarely changes between ticks
+            stimuli = self._stimuli = model.stimuli(self._percepts)
+            self._seen = seen
         running = self.current.name if self.current and not self.current.paused else None
         self._motivation = model.step(self._motivation, dt, stimuli, running, now)
         self._last_step = now
@@ -380,13 +432,23 @@ class Controller:
         stimuli = model.stimuli(Percepts(percepts.user_present, percepts.engagement, percepts.env))
         running = self.current.name if self.current and not self.current.paused else None
         period = self.settings.tick_period_s
-        run = simulate(model, state, now, horizon_s, stimuli, running=running, tick_s=period)
+        run = simulate(
+            model,
+            state,
+            now,
+            horizon_s,
+            stimuli,
+            running=running,
+            tick_s=period,
+            only_dominant=True,
+        )
         expected = model.behavior(state)
         behaviors = [*model.table.behaviors, model.config.idle_behavior]
-        for index, dominant in enumerate(run.dominant.tolist()):
-            if behaviors[dominant] != expected:
-                return (index + 1) * period
-        return None
+        # the dominant drive's index at each tick, -1 for none: the idle behavior, last
+        same = np.array([behavior == expected for behavior in behaviors])[run.dominant]
+        if same.all():
+            return None
+        return (int(np.argmin(same)) + 1) * period  # the first tick of another behavior
 
     # ------------------------------------------------------------------ step 2: events
 
@@ -1139,8 +1201,12 @@ class Controller:
         agenda = self.deps.agenda
         if agenda is None or self._robot_blocked:  # offline: items wait (grace), not consumed
             return []
-        result = self._agenda_call("due", now, self._ready_user())
-        return list(result or [])
+        try:  # as _agenda_call, without its lookup: called every tick an activity runs
+            return agenda.due(now, self._ready_user())
+        except Exception as error:
+            log.exception("agenda.due failed")
+            self.deps.report_error("agenda", f"due: {error}")
+            return []
 
     def _run_agenda_item(self, item: DueItem, now: datetime) -> None:
         if item.kind == "reminder":
@@ -1290,18 +1356,17 @@ class Controller:
         top = sorted(means, key=lambda name: -means[name])[:3]
         return [PreferenceWhy(activity=name, score=round(means[name], 3)) for name in top]
 
-    def _activity_state(self, running: Running | None) -> dict[str, str] | None:
+    def _activity_state(self, running: Running | None) -> _ActivityParts | None:
         """The fields of ActivityState, taken now (the active path moves on)."""
         if running is None:
             return None
-        manager = self.managers[running.manager]
-        activity = manager.activity
-        return {
-            "name": running.name,
-            "manager": running.manager.value,
-            "status": "paused" if running.paused else "running",
-            "state": activity.state_path if activity is not None else "",
-        }
+        activity = self.managers[running.manager].activity
+        return (
+            running.name,
+            running.manager.value,
+            "paused" if running.paused else "running",
+            activity.state_path if activity is not None else "",
+        )
 
     def build_state(self, now: datetime) -> DmsState:
         """The DmsState for ``now`` from what the controller holds."""
@@ -1309,52 +1374,34 @@ class Controller:
 
     def _state_of(self, now: datetime) -> tuple[_Lazy[DmsState], _Lazy[MotivationSnapshot]]:
         """DmsState for ``now``, and its motivation part alone: what they are made of is
-        taken now, since the controller moves on; the models are made on first read."""
-        model, snapshot = self.deps.motivation, self._motivation
-        motivation = _Lazy(
-            (lambda: MotivationSnapshot(**model.snapshot(snapshot)))
-            if snapshot is not None
-            else (
-                lambda: MotivationSnapshot(
-                    dominant=None, drives={}, motivations={}, wellbeing=100.0
-                )
-            )
-        )
+        taken now, since the controller moves on; the models are made on first read.
+
+        Every tick makes these, and most are never read (a simulation reads none): the
+        parts are plain values bound with ``partial``, no closure (issue 14)."""
+        motivation = _Lazy(partial(_motivation_snapshot, self.deps.motivation, self._motivation))
         session = self._session
-        user_id = session.user_id if session is not None else None
-        ready = user_id is not None and self._ready_user() == user_id
-        p_user = session.p_user if session is not None else None
-        proactivity = (  # for a viewer: what the mode was drawn from
-            str(getattr(self._profile(), "proactivity", None) or "unknown")
-            if session is not None
-            else None
+        user: tuple[str, bool, str, float] | None = None
+        mode: Mode = "motivation"
+        if session is not None:
+            user_id = session.user_id
+            proactivity = str(getattr(self._profile(), "proactivity", None) or "unknown")
+            user = (user_id, self._ready_user() == user_id, proactivity, session.p_user)
+            mode = session.mode
+        snapshot = self._snapshot
+        state = partial(
+            _dms_state,
+            self.robot_id,
+            self._tick,
+            now,
+            mode,
+            user,
+            self._activity_state(self.current),
+            self._activity_state(self.suspended),
+            snapshot.status if snapshot is not None else {},
+            self.deps.expression.robot_offline,
+            motivation,
         )
-        robot, tick = self.robot_id, self._tick
-        mode: Mode = session.mode if session is not None else "motivation"
-        activity = self._activity_state(self.current)
-        suspended = self._activity_state(self.suspended)
-        inputs = self._snapshot.status if self._snapshot else {}
-        offline = self.deps.expression.robot_offline
-
-        def make() -> DmsState:
-            return DmsState(
-                robot=robot,
-                tick=tick,
-                time=iso(now),
-                mode=mode,
-                user=(
-                    UserState(id=user_id, ready=ready, proactivity=proactivity, p_user=p_user)
-                    if user_id is not None
-                    else None
-                ),
-                activity=ActivityState(**activity) if activity is not None else None,
-                suspended=ActivityState(**suspended) if suspended is not None else None,
-                motivation=motivation.get(),
-                inputs=dict(inputs),
-                robot_link="offline" if offline else "ok",
-            )
-
-        return _Lazy(make), motivation
+        return _Lazy(state), motivation
 
     @property
     def state(self) -> DmsState | None:
@@ -1367,3 +1414,51 @@ class Controller:
         if self.current is None:
             return None
         return self.managers[self.current.manager].activity
+
+
+def _motivation_snapshot(
+    model: MotivationModel, state: MotivationState | None
+) -> MotivationSnapshot:
+    """DmsState's ``motivation`` for ``state`` (None: before the first step)."""
+    if state is None:
+        return MotivationSnapshot(dominant=None, drives={}, motivations={}, wellbeing=100.0)
+    return MotivationSnapshot(**model.snapshot(state))
+
+
+def _dms_state(
+    robot: str,
+    tick: int,
+    now: datetime,
+    mode: Mode,
+    user: tuple[str, bool, str, float] | None,
+    activity: _ActivityParts | None,
+    suspended: _ActivityParts | None,
+    inputs: Mapping[str, Any],
+    offline: bool,
+    motivation: _Lazy[MotivationSnapshot],
+) -> DmsState:
+    """The DmsState of the parts :meth:`Controller._state_of` took at a tick: ``user``
+    is (id, ready, proactivity, p_user), an activity (name, manager, status, state)."""
+    return DmsState(
+        robot=robot,
+        tick=tick,
+        time=iso(now),
+        mode=mode,
+        user=(
+            UserState(id=user[0], ready=user[1], proactivity=user[2], p_user=user[3])
+            if user is not None
+            else None
+        ),
+        activity=_activity_model(activity),
+        suspended=_activity_model(suspended),
+        motivation=motivation.get(),
+        inputs=dict(inputs),
+        robot_link="offline" if offline else "ok",
+    )
+
+
+def _activity_model(parts: _ActivityParts | None) -> ActivityState | None:
+    if parts is None:
+        return None
+    name, manager, status, state = parts
+    return ActivityState(name=name, manager=manager, status=status, state=state)

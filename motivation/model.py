@@ -22,10 +22,12 @@ from datetime import UTC, datetime, tzinfo
 import numpy as np
 
 from motivation.config import MotivationConfig
-from motivation.dynamics import HIGH, LOW, FloatArray, evolve, integral
+from motivation.dynamics import HIGH, LOW, OMEGA, FloatArray, evolve
 from motivation.stimuli import Percepts, Stimuli, caress_count, source_levels
 
 NO_DOMINANT = -1
+
+sin = math.sin
 
 
 @dataclass(frozen=True)
@@ -104,11 +106,12 @@ def day_seconds(now: datetime, zone: tzinfo) -> float:
 
 @dataclass(frozen=True, slots=True)
 class _StepPlan:
-    """What ``step`` needs of its inputs, per drive: (instant relief, a, b, peak, sign)."""
+    """What ``step`` needs of its inputs, per drive: (instant relief, a, b, peak, sign,
+    ``b / OMEGA``: the daily wave's factor in ``integral``)."""
 
     stimuli: Stimuli
     running: str | None
-    rows: tuple[tuple[float, float, float, float, int], ...]
+    rows: tuple[tuple[float, float, float, float, int, float], ...]
     levels: list[float]
 
 
@@ -231,13 +234,15 @@ class MotivationModel:
             plan = self._plan = self._plan_for(stimuli, running)
         evolved: list[float] = []
         drives = state.drives.tolist()
-        for drive, (instant, a, b, peak, sign) in zip(drives, plan.rows, strict=True):
+        span = end - start
+        for drive, (instant, a, b, peak, sign, wave) in zip(drives, plan.rows, strict=True):
             drive = max(0.0, drive - instant)
             if sign == 0:  # the rate may turn inside the step: split it there
                 evolved.append(evolve(drive, a, b, peak, start, end))
                 continue
-            # ``evolve`` without its calls: the rate keeps its sign, so one clipped piece
-            change = integral(a, b, peak, start, end)
+            # ``evolve`` without its calls: the rate keeps its sign, so one clipped piece;
+            # the change is ``integral(a, b, peak, start, end)``, written out
+            change = a * span + wave * (sin(OMEGA * (end - peak)) - sin(OMEGA * (start - peak)))
             change = max(change, 0.0) if sign > 0 else min(change, 0.0)
             evolved.append(min(HIGH, max(LOW, drive + change)))
         dominant = self._next_dominant(state.dominant, evolved, plan.levels)
@@ -250,12 +255,12 @@ class MotivationModel:
         satisfied = self._satisfaction_rows.get(running, self._satisfaction_rows[None])
         relief = stimuli.relief.tolist()
         instant = stimuli.instant.tolist()
-        rows: list[tuple[float, float, float, float, int]] = []
+        rows: list[tuple[float, float, float, float, int, float]] = []
         for i, (base, swing, peak) in enumerate(self._rate_rows):
             a = base * awake[i] - satisfied[i] - relief[i]
             b = swing * awake[i]
             sign = 1 if a >= b else -1 if a <= -b else 0  # as ``signed`` decides it
-            rows.append((instant[i], a, b, peak, sign))
+            rows.append((instant[i], a, b, peak, sign, b / OMEGA))
         return _StepPlan(stimuli, running, tuple(rows), stimuli.levels.tolist())
 
     # ------------------------------------------------------------------ reading a state
@@ -317,6 +322,11 @@ class MotivationModel:
         weighted = float(sum(w * d for w, d in zip(self._omega, drives, strict=True)))
         # clipped: with every drive at 100 the rounding of the mean can leave -1e-14
         return min(100.0, max(0.0, 100.0 - weighted / self._omega_total))
+
+    def snapshot_wellbeing(self, drives: list[float]) -> float:
+        """``snapshot(state)["wellbeing"]`` for ``state.drives.tolist()``, alone: for a
+        reader that needs only it every tick."""
+        return round3(self._wellbeing(drives))
 
     def snapshot(self, state: MotivationState) -> dict[str, object]:
         """The ``motivation`` field of DmsState."""
