@@ -72,6 +72,9 @@ class Manager:
         self._activity: Activity | None = None
         self._activity_name: str | None = None
         self._winding_down: list[Activity] = []
+        self._last_reply: ManagerReply | None = None
+        """The last running or paused answer of :meth:`tick`, given again while nothing in
+        it changed (most ticks): one object less a tick."""
 
     @property
     def activities(self) -> tuple[str, ...]:
@@ -144,9 +147,17 @@ class Manager:
         if status in _FINAL:
             result = activity.result
             return self._finish(_FINAL[status], detail=result.error, redirect=result.redirect)
-        return self._reply(
-            ManagerStatus.PAUSED if status is ActivityStatus.PAUSED else ManagerStatus.RUNNING
-        )
+        going = ManagerStatus.PAUSED if status is ActivityStatus.PAUSED else ManagerStatus.RUNNING
+        last = self._last_reply
+        if (
+            last is not None
+            and last.status is going
+            and last.activity == self._activity_name
+            and last.state == activity.state_path
+        ):
+            return last  # the same answer as the last tick's (a reply is frozen)
+        reply = self._last_reply = self._reply(going)
+        return reply
 
     def _finish(
         self, status: ManagerStatus, detail: str | None = None, redirect: str | None = None
