@@ -340,6 +340,8 @@ class Simulation:
 
     def run_until(self, t_end: float) -> None:
         """Tick (periodically and on urgent inputs) until virtual second ``t_end``."""
+        # ``clock.monotonic()`` is ``self.t`` without the property: this loop turns once
+        # a tick or more, and a long run has hundreds of thousands of ticks
         queue, clock = self._queue, self.clock
         while True:
             upcoming = self._next_tick if self.periodic else math.inf
@@ -354,21 +356,22 @@ class Simulation:
             if upcoming > t:
                 clock.advance(upcoming - t)
             urgent = False
-            while self._queue and self._queue[0].t <= self.t:
-                scheduled = heapq.heappop(self._queue)
+            while queue and queue[0].t <= clock.monotonic():
+                scheduled = heapq.heappop(queue)
                 self._actions_run += 1
                 scheduled.action()
                 urgent = urgent or scheduled.urgent
             urgent = self._user_outputs() or urgent
-            periodic = self.periodic and self._next_tick <= self.t
+            periodic = self.periodic and self._next_tick <= clock.monotonic()
             if periodic or urgent:
                 self.tick(urgent=urgent and not periodic)
             if periodic:
                 step = self._step()  # once: an idle step simulates the motivation ahead
-                self._next_tick = self.t + step
+                t = clock.monotonic()
+                self._next_tick = t + step
                 # Never step over something scheduled: an arrival, a scripted input.
-                if self._queue and self._queue[0].t < self._next_tick and step > self.period:
-                    self._next_tick = max(self.t + self.period, self._queue[0].t)
+                if queue and queue[0].t < self._next_tick and step > self.period:
+                    self._next_tick = max(t + self.period, queue[0].t)
         if t_end > self.t:
             self.clock.advance(t_end - self.t)
 

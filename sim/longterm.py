@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 
 from dms.config import Settings
 from dms.kernel.messages import RobotCommand
+from motivation.model import MotivationModel, round3
 from sim.persona import WEEKDAYS, Persona, load_persona, shipped_personas
 from sim.study import DecisionRow, SessionMetrics, SessionObserver, command_handle
 from sim.user import SimulatedUser
@@ -125,15 +126,24 @@ class LongtermResult:
 
 
 class _Tracker:
-    """Accounts the time of each activity, by hour of day, and samples the drives."""
+    """Accounts the time of each activity, by hour of day, and samples the drives.
 
-    def __init__(self, start: datetime) -> None:
+    It reads the motivation model's own state each tick, not the snapshot of DmsState
+    (a pydantic model, a sixth of a tick): the snapshot's numbers are those of the state
+    rounded to three places, and rounding keeps the order, so the largest rounded drive
+    is the rounded largest one (``drives_max``), and the wellbeing is rounded the same
+    way (:meth:`MotivationModel.snapshot_wellbeing`). Samples take the snapshot itself.
+    """
+
+    def __init__(self, start: datetime, model: MotivationModel) -> None:
         self.start = start
+        self.model = model
         self.last_t: float | None = None
         self.last_activity: str | None = None
         self.activity_seconds: dict[str, float] = defaultdict(float)
         self.by_hour: dict[int, dict[str, float]] = {h: defaultdict(float) for h in range(24)}
-        self.drives_max: dict[str, float] = {}
+        self._drives_max: list[float] = []
+        """The largest value of each drive (the model's order), not rounded yet."""
         self.wellbeing_area = 0.0
         self.last_wellbeing: float | None = None
         self.samples: list[tuple[float, dict[str, float], float]] = []
@@ -144,21 +154,34 @@ class _Tracker:
         self._hour: tuple[float, float, dict[str, float]] = (math.nan, 0.0, {})
         """The hour of the last interval accounted: (its index, its end, its seconds)."""
 
+    @property
+    def drives_max(self) -> dict[str, float]:
+        """The largest value of each drive, as the snapshots give them (rounded)."""
+        if not self._drives_max:  # no step yet: the snapshot had no drives
+            return {}
+        names = self.model.names
+        return {name: round3(value) for name, value in zip(names, self._drives_max, strict=True)}
+
     def on_tick(self, t: float, record: TickRecord) -> None:
-        # The motivation part and the activity's name only: the whole DmsState is not
-        # built (a sixth of a tick).
         if self.last_t is not None:
             dt = t - self.last_t
             if self.last_activity is not None and dt > 0:
                 self._account(self.last_activity, self.last_t, t)
             if self.last_wellbeing is not None:
                 self.wellbeing_area += self.last_wellbeing * dt
-        motivation = record.motivation
-        drives_max = self.drives_max
-        for name, value in motivation.drives.items():
-            if value > drives_max.get(name, -math.inf):
-                drives_max[name] = value
-        self.last_wellbeing = motivation.wellbeing
+        state = record.motivation_state
+        if state is None:  # before the first step: what the snapshot says then
+            self.last_wellbeing = 100.0
+        else:
+            drives = state.drives.tolist()
+            highest = self._drives_max
+            if not highest:
+                highest.extend(drives)
+            else:
+                for i, value in enumerate(drives):
+                    if value > highest[i]:
+                        highest[i] = value
+            self.last_wellbeing = self.model.snapshot_wellbeing(drives)
         activity = record.activity
         if activity != self.last_activity:
             if self.last_activity is not None:
@@ -167,6 +190,7 @@ class _Tracker:
         self.last_activity = activity
         self.last_t = t
         if t >= self.next_sample:
+            motivation = record.motivation
             self.samples.append((t, dict(motivation.drives), motivation.wellbeing))
             self.next_sample = t + SAMPLE_EVERY_S
 
@@ -224,7 +248,7 @@ def run_longterm(
     with Simulation(settings, seed=seed, start=START) as sim:
         sim.idle_step_s = idle_step_s
         sim.prediction_s = PREDICTION_S
-        tracker = _Tracker(START)
+        tracker = _Tracker(START, sim.controller.deps.motivation)
         sim.tick_listeners.append(lambda record: tracker.on_tick(sim.t, record))
         people = [
             SimulatedUser(persona, random.Random(rng.random()), user_id)

@@ -1,0 +1,118 @@
+"""The shortcuts of issue 14's tick give what the long way gives.
+
+A long run reads the motivation model's own state each tick instead of DmsState's
+snapshot, a manager answers with its last reply while nothing in it changed, and the
+prediction of the next motivated change keeps only the dominant drives. Each test runs
+the long way beside the short one, on a simulated morning with a visitor, and compares
+them exactly (fixed seeds: the numbers must be the same floats, not close ones).
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from datetime import UTC, datetime
+from typing import Any
+
+import numpy as np
+
+from dms.controller import TickRecord
+from managers import ManagerReply, ManagerStatus
+from motivation import MotivationModel, Percepts, simulate
+from sim.harness import Simulation
+from sim.longterm import _Tracker
+from sim.persona import load_persona
+from sim.user import SimulatedUser
+
+START = datetime(2026, 11, 23, 6, 0, tzinfo=UTC)
+
+
+def _morning(sim: Simulation) -> None:
+    """Two idle hours (idle steps), a visit of 20 minutes, an idle hour."""
+    sim.idle_step_s = 300.0
+    user = SimulatedUser(load_persona("alice"), random.Random(4))
+    sim.at(2 * 3600, lambda: sim.seat(user))
+    sim.at(2 * 3600 + 1200, sim.unseat)
+    sim.unseat()
+    sim.run_until(3.5 * 3600)
+
+
+class _FromSnapshots:
+    """The long-term tracker's motivation figures the way it took them before: from
+    each tick's MotivationSnapshot."""
+
+    def __init__(self, sim: Simulation) -> None:
+        self.sim = sim
+        self.drives_max: dict[str, float] = {}
+        self.area = 0.0
+        self.last: tuple[float, float] | None = None
+        self.samples: list[tuple[float, dict[str, float], float]] = []
+
+    def on_tick(self, record: TickRecord) -> None:
+        t, motivation = self.sim.t, record.motivation
+        if self.last is not None:
+            self.area += self.last[1] * (t - self.last[0])
+        for name, value in motivation.drives.items():
+            if value > self.drives_max.get(name, -math.inf):
+                self.drives_max[name] = value
+        self.last = (t, motivation.wellbeing)
+        self.samples.append((t, dict(motivation.drives), motivation.wellbeing))
+
+
+def test_the_tracker_gives_what_the_snapshots_give() -> None:
+    with Simulation(seed=2, start=START) as sim:
+        tracker = _Tracker(START, sim.controller.deps.motivation)
+        reference = _FromSnapshots(sim)
+        sim.tick_listeners += [lambda record: tracker.on_tick(sim.t, record), reference.on_tick]
+        _morning(sim)
+        assert sim.ticks > 2000, "the visit should tick at 2 Hz"
+    assert tracker.drives_max == reference.drives_max
+    assert tracker.wellbeing_area == reference.area
+    sampled = {t: (drives, wellbeing) for t, drives, wellbeing in reference.samples}
+    assert tracker.samples, "a sample every five minutes"
+    for t, drives, wellbeing in tracker.samples:
+        assert sampled[t] == (drives, wellbeing)
+
+
+def test_a_manager_answers_again_only_with_what_still_holds() -> None:
+    checked = 0
+
+    with Simulation(seed=2, start=START) as sim:
+        for manager in sim.controller.managers.values():
+            tick = manager.tick
+
+            def checking(now: datetime, manager: Any = manager, tick: Any = tick) -> ManagerReply:
+                nonlocal checked
+                reply: ManagerReply = tick(now)
+                activity = manager.activity
+                if reply.status in (ManagerStatus.RUNNING, ManagerStatus.PAUSED):
+                    assert activity is not None
+                    assert reply.activity == manager.activity_name
+                    assert reply.state == activity.state_path
+                    assert reply.redirect is None and reply.detail is None and reply.data is None
+                    paused = activity.status is not None and activity.status.value == "paused"
+                    assert (reply.status is ManagerStatus.PAUSED) == paused
+                    checked += 1
+                return reply
+
+            manager.tick = checking  # type: ignore[method-assign]
+        _morning(sim)
+    assert checked > 2000
+
+
+def test_the_prediction_keeps_the_dominant_drives_of_a_whole_run() -> None:
+    model = MotivationModel()
+    state = model.initial_state(START)
+    for running, percepts in [
+        ("sleep", Percepts(False)),
+        (None, Percepts(True, 0.9)),
+        ("dance", Percepts(None, None, {"light_lux": 10.0})),
+    ]:
+        stimuli = model.stimuli(percepts)
+        whole = simulate(model, state, START, 7200.0, stimuli, running=running)
+        lean = simulate(model, state, START, 7200.0, stimuli, running=running, only_dominant=True)
+        assert np.array_equal(lean.dominant, whole.dominant)
+        assert np.array_equal(lean.seconds, whole.seconds)
+        assert np.array_equal(lean.final.drives, whole.final.drives)
+        assert lean.final.dominant == whole.final.dominant
+        assert lean.drives.shape == (0, len(model.names)) and lean.wellbeing.size == 0
