@@ -379,10 +379,32 @@ def _shaped(required: dict[str, Any], optional: dict[str, Any]) -> st.SearchStra
     )
 
 
+METRES = st.one_of(st.floats(-2.0, 2.0), st.floats(allow_nan=True, allow_infinity=True), JUNK)
+POSE = _shaped(
+    {"position": _shaped({"x": METRES, "y": METRES, "z": METRES}, {})},
+    {"orientation": _shaped({"x": UNIT, "y": UNIT, "z": UNIT, "w": UNIT}, {})},
+)
+JOINT_NAMES = st.sampled_from(["hip", "left_arm", "right_arm", "neck", "head", "tail"])
+
 PAYLOADS: dict[str, st.SearchStrategy[Any]] = {
     "perception/user": _shaped(
         {"present": st.booleans()},
-        {"user_id": IDS, "ready": st.booleans(), "engagement": UNIT},
+        {"user_id": IDS, "ready": st.booleans(), "engagement": UNIT, "face": POSE},
+    ),
+    "perception/objects": _shaped(
+        {
+            "objects": st.lists(
+                _shaped(
+                    {"name": st.one_of(st.sampled_from(["cup", "tag7"]), IDS), "pose": POSE}, {}
+                ),
+                max_size=4,
+            )
+        },
+        {},
+    ),
+    "robot/joints": _shaped(
+        {"positions": st.dictionaries(JOINT_NAMES, METRES, max_size=6)},
+        {"time": st.text(max_size=8)},
     ),
     "perception/touch": _shaped(
         {
