@@ -4,8 +4,10 @@ N participants (default 30) each sit in front of the robot for M minutes (defaul
 one after the other, on one robot with one store, as in the seed's usability study:
 the robot asks a few general questions, then activities follow, chosen by the robot or
 by the participant according to the participant's proactivity (moderate, as in the
-paper, unless ``--proactivity`` says otherwise). Each participant is one of the shipped
-personas with its preferences and habits jittered, so no two are alike.
+paper, unless ``--proactivity`` says otherwise), until the last one that fits before the
+survey at the end. Each participant is an adult like the seed's (:mod:`sim.population`)
+or, with ``--population personas``, a shipped persona with its preferences and habits
+jittered, so no two are alike.
 
 The metrics are those of the seed's Table 4, measured on what the controller decided
 and the simulated robot did:
@@ -13,7 +15,8 @@ and the simulated robot did:
 - questions per session: general questions asked (``ask`` decisions, reason
   ``general_question``);
 - activities per session: activities started for the participant (menus,
-  notifications, waiting and sleeping not counted);
+  notifications, waiting and sleeping not counted) until their last one
+  (:data:`LAST_CALL_S`);
 - activity loading time: from the ``start`` decision until the controller hears from
   the robot that the activity's first command started (its ``started`` feedback): the
   wait for the channel (a dialog or another command still speaking) plus the feedback
@@ -56,6 +59,18 @@ GAP_S = 120.0
 """Virtual seconds between two participants."""
 SURVEY_S = 180.0
 """The seed's usability survey at the end of each 30-minute session ("around 3 min")."""
+LAST_CALL_S = 255.91 + 43.12
+"""What one more activity needs: the seed's mean execution time and time to change
+activity (Table 4). An activity that ends with less than this left before the survey is
+the participant's last, and they get up for the survey when the robot moves on: the
+seed's participants did the survey "after completing the activities" ("Experimental
+setup"), so the survey cut none. The seed's figures agree: 4.76 activities of 255.9 s,
+3.8 s to load each and 43.1 s between them take 23.3 minutes, about 2.7 minutes less
+than the 27 before the survey leave after the opening questions and the first choice
+(about a minute): half of what one more activity needs, what stopping at the last
+activity that fits leaves on average. Cutting the activity under way at the survey and
+counting it instead gave about one activity a session too many (it began with minutes
+left) and an execution time that matched only because the cut ones were short."""
 LAUNCH_DELAY_S = (3.0, 3.8)
 """The simulated Mini's time to launch an activity's process (uniform, seconds). The
 seed's loading time, 3.78 s (SD 0.25), is this plus the feedback round of up to one
@@ -91,10 +106,22 @@ class SessionMetrics:
 
 
 class SessionObserver:
-    """Turns one session's decisions and robot commands into :class:`SessionMetrics`."""
+    """Turns one session's decisions and robot commands into :class:`SessionMetrics`.
 
-    def __init__(self) -> None:
+    With ``last_call`` (a virtual second), the activity that ends at or after it is the
+    participant's last (the study's protocol, :data:`LAST_CALL_S`): nothing after its end
+    is measured, and :attr:`finished` turns true when the robot moves on (starts a menu or
+    another activity), when the participant gets up for the survey. Without it, every
+    decision until the participant leaves is measured.
+    """
+
+    def __init__(self, last_call: float | None = None) -> None:
         self.metrics = SessionMetrics()
+        self.last_call = last_call
+        self.finished = False
+        """The participant's activities are over (only with ``last_call``)."""
+        self._closing = False
+        """The last activity has ended: what the robot starts next is not measured."""
         self._started: dict[str, float] = {}
         self._first: dict[str, CommandHandle] = {}
         """Per activity, its first command sent since its last start or end."""
@@ -105,6 +132,11 @@ class SessionObserver:
     def on_decision(self, timed: TimedDecision) -> None:
         d, t, m = timed.decision, timed.t, self.metrics
         name = d.activity
+        if self.finished:
+            return
+        if self._closing and d.action == "start":
+            self.finished = True  # the participant gets up instead
+            return
         if d.action == "ask" and d.reason == "general_question":
             m.questions += 1
         counted = name is not None and name not in NOT_COUNTED
@@ -139,6 +171,8 @@ class SessionObserver:
                     m.robot_choice_cancels += 1
             if d.action == "fail":
                 m.other_failures += 1
+            if self.last_call is not None and t >= self.last_call and d.reason != "user_left":
+                self._closing = True
 
     def on_command(self, handle: CommandHandle | None, t: float) -> None:
         """A command was sent to the robot; ``handle`` is the arbiter's, with its source."""
@@ -492,12 +526,13 @@ def run_study(
                 number += 1
                 user = users[person.id]
                 user.stats = UserStats()
-                observer = SessionObserver()
+                began = sim.t
+                survey_at = began + minutes * 60.0 - min(survey_s, minutes * 6.0)
+                observer = SessionObserver(last_call=survey_at - LAST_CALL_S)
                 current.update(session=number, participant=person.id, visit=visit, t0=sim.t)
                 unanswered_before = sim.controller.counters.unanswered
-                began = sim.t
                 sim.seat(user)
-                _run_session(sim, minutes * 60.0, survey_s)
+                _run_session(sim, observer, survey_at)
                 sim.unseat()
                 sim.run_for(1.0)  # the departure is seen and the session closed
                 metrics = observer.metrics
@@ -518,9 +553,13 @@ def run_study(
     )
 
 
-def _run_session(sim: Simulation, length_s: float, survey_s: float) -> None:
-    """The participant's time with the robot: the session less the survey at its end
-    (the seed's 3 of 30 minutes: at most a tenth of a shorter session). At the survey the
-    participant gets up whatever runs (the activity under way ends ``user_left``:
+def _run_session(sim: Simulation, observer: SessionObserver, survey_at: float) -> None:
+    """The participant's time with the robot, until their last activity is over
+    (``observer.finished``) or the survey begins at ``survey_at`` (the seed's 3 of 30
+    minutes; at most a tenth of a shorter session), whichever comes first. At the survey
+    the participant gets up whatever runs (an activity under way then ends ``user_left``:
     counted as started, not as a cancel)."""
-    sim.run_for(length_s - min(survey_s, length_s / 10.0))
+    if observer.last_call is not None:
+        sim.run_until(max(sim.t, observer.last_call))  # no activity can be the last before
+    while sim.t < survey_at and not observer.finished:
+        sim.run_until(min(sim.t + sim.period, survey_at))

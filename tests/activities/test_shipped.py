@@ -136,7 +136,7 @@ def test_dance_is_music_and_motion_together_until_the_music_ends(bench: Bench) -
     bench.run_until(activity, lambda: not activity.state_path.startswith("DANCE"))
     assert dance.outcome == "done"
     media = [c for c in bench.commands if c.channel == "media"]
-    assert len(media) == 1 and 290 <= media[0].args["duration_s"] <= 330  # a whole song
+    assert len(media) == 1 and 220 <= media[0].args["duration_s"] <= 330  # a whole song
     assert bench.expression.active("motion") is None or bench.finish(activity)
 
 
