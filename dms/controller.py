@@ -683,8 +683,16 @@ class Controller:
         return self._snapshot is not None and keys.PERCEPTION_USER not in self._snapshot.values
 
     def _track_user(self, now: datetime) -> None:
+        session, user = self._session, self._user
+        if (
+            session is not None
+            and user is not None
+            and user.present
+            and user.user_id in (None, session.user_id)
+        ):
+            self._unknown_since = None  # still there (most ticks): what follows would agree
+            return
         ready = self._ready_user()
-        session = self._session
         reason: Reason = "user_left"
         if session is not None and self._perception_unknown():
             # An absent module is not considered (seed 001): the session and its activity

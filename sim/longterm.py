@@ -18,13 +18,15 @@ activity is seen less often. ``ticks`` in the JSON counts the controller ticks r
 
 from __future__ import annotations
 
+import gc
 import math
 import random
 import resource
 import sys
 import time
 from collections import defaultdict
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
@@ -218,6 +220,22 @@ class _Tracker:
             self.spans.append((self.last_activity, self._span_start, t))
 
 
+@contextmanager
+def _frozen() -> Iterator[None]:
+    """Leave what exists now (the modules, the stack just built: most objects of the
+    process) out of the collector's full passes while the block runs: over a month the
+    few full passes took a quarter of a second, scanning them each time. Does nothing
+    if something froze objects already (theirs stay as they are)."""
+    if gc.get_freeze_count():
+        yield
+        return
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
+
+
 def _peak_rss_mb() -> float:
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     return peak / (1024 * 1024) if sys.platform == "darwin" else peak / 1024
@@ -245,7 +263,7 @@ def run_longterm(
         for i, persona in enumerate(personas)
     ]
     visits = plan_visits(personas, days, rng)
-    with Simulation(settings, seed=seed, start=START) as sim:
+    with Simulation(settings, seed=seed, start=START) as sim, _frozen():
         sim.idle_step_s = idle_step_s
         sim.prediction_s = PREDICTION_S
         tracker = _Tracker(START, sim.controller.deps.motivation)
