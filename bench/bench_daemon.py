@@ -1,13 +1,15 @@
 """Benchmarks of the spine (issue 2); prints one JSON object.
 
-- tick cost of the controller with the sixteen activities and 1,000 stored profiles;
+- tick cost of the controller with the sixteen activities and 1,000 stored profiles,
+  with the background work let finish between ticks as in the daemon, and back to back
+  (``--tick-only``: these alone);
 - urgent reaction: a touch published by another process to the pause decision received
   by that process, over real Zenoh on 127.0.0.1 (200 touches);
 - tick jitter of the live daemon over real time (``--jitter-s``, default 60);
 - a perception flood of 10,000 messages/s for 10 s from another process: backlog,
   missed ticks and the daemon's memory.
 
-Usage: ``.venv/bin/python bench/bench_daemon.py [--quick]``
+Usage: ``.venv/bin/python bench/bench_daemon.py [--quick] [--tick-only]``
 """
 
 from __future__ import annotations
@@ -47,7 +49,17 @@ def percentile(values: list[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
 
 
-def bench_tick_cost(ticks: int) -> dict[str, Any]:
+def bench_tick_cost(ticks: int, spaced: bool = True) -> dict[str, Any]:
+    """The controller's tick, with the DmsState the daemon publishes.
+
+    ``spaced``: before each tick (not timed) the background work already started (the
+    profile writer's queue, the agenda's poll, a retraining) is let finish, as the
+    daemon's 0.5 s between ticks lets it. Back to back, 20,000 ticks take a few seconds
+    while the agenda polls the database every 10 s of their virtual clock (a thousand
+    polls) and the writer writes after each decision: those threads held the GIL in
+    the middle of the next ticks, which the daemon's ticks never see; that figure is
+    kept as ``back_to_back`` (issue 14).
+    """
     with tempfile.TemporaryDirectory() as tmp:
         url = f"sqlite:///{tmp}/bench.db"
         store = ProfileStore(url)
@@ -58,6 +70,7 @@ def bench_tick_cost(ticks: int) -> dict[str, Any]:
         settings = Settings(db=url, seed=1)
         stack = build_stack(settings, SimRobot(rng_seed=1), lambda c: None, lambda k, e: None)
         assert len(stack.library.names) == 16
+        deps = stack.controller.deps
         clock = VirtualClock(start)
         board = stack.inputs
         costs: list[float] = []
@@ -74,6 +87,8 @@ def bench_tick_cost(ticks: int) -> dict[str, Any]:
                 clock.monotonic(),
             )
             now = clock.advance(0.5)
+            if spaced:
+                _background_done(deps)
             t0 = time.perf_counter()
             # with the DmsState the daemon publishes (built on first read since issue 14)
             state = stack.controller.tick(now, clock.monotonic()).state
@@ -82,11 +97,22 @@ def bench_tick_cost(ticks: int) -> dict[str, Any]:
         stack.close()
     return {
         "ticks": ticks,
+        "spaced": spaced,
         "p50_ms": round(percentile(costs, 0.5) * 1000, 4),
         "p99_ms": round(percentile(costs, 0.99) * 1000, 4),
         "max_ms": round(max(costs) * 1000, 3),
-        "target_p99_ms": 1.0,
+        "target_p99_ms": 0.2,
     }
+
+
+def _background_done(deps: Any, timeout_s: float = 5.0) -> None:
+    """Wait for the work the last ticks started off the tick (see bench_tick_cost)."""
+    if deps.profiles is not None:
+        deps.profiles.writer.wait_idle(timeout_s)
+    if deps.agenda is not None:
+        deps.agenda.wait_idle(timeout_s)
+    if deps.chooser is not None:
+        deps.chooser.wait_retrained(timeout_s)
 
 
 def _vm_rss_mb(pid: int) -> float:
@@ -206,10 +232,18 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--quick", action="store_true", help="short runs, for a smoke test")
     parser.add_argument("--jitter-s", type=float, default=60.0)
+    parser.add_argument(
+        "--tick-only", action="store_true", help="only the tick cost (no daemon process)"
+    )
     args = parser.parse_args()
     quick = args.quick
     result: dict[str, Any] = {"benchmark": "daemon"}
-    result["tick_cost"] = bench_tick_cost(2000 if quick else 20000)
+    ticks = 2000 if quick else 20000
+    result["tick_cost"] = bench_tick_cost(ticks)
+    result["tick_cost_back_to_back"] = bench_tick_cost(ticks, spaced=False)
+    if args.tick_only:
+        print(json.dumps(result))
+        return
     result.update(
         bench_live(
             touches=20 if quick else 200,
