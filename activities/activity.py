@@ -10,6 +10,7 @@ from enum import Enum
 from typing import Any
 
 from activities.engine import Event, Node, Runtime, Status
+from activities.gaze import GazeKeeper
 
 log = logging.getLogger(__name__)
 
@@ -44,10 +45,14 @@ class ActivityResult:
 class Activity:
     """One behavior instance: start, tick, pause, resume, cancel, deliver events."""
 
-    def __init__(self, name: str, root: Node, runtime: Runtime) -> None:
+    def __init__(
+        self, name: str, root: Node, runtime: Runtime, gaze: GazeKeeper | None = None
+    ) -> None:
         self.name = name
         self.root = root
         self.runtime = runtime
+        self.gaze = gaze
+        """The behavior's ``attend:``: keeps the gaze on the person while it runs."""
         self.userdata: dict[str, Any] = {}
         self.status: ActivityStatus | None = None
         self._result = ActivityResult()
@@ -98,6 +103,8 @@ class Activity:
         except Exception as error:  # a broken block fails its activity, never the daemon
             self._contain(now, error)
             return self.status
+        if self.gaze is not None and status is Status.RUNNING:
+            self.gaze.update(now)
         if status is Status.DONE:
             ended = ActivityStatus.CANCELLED if self._stop_by else ActivityStatus.COMPLETED
             self._end(ended, self.root.outcome or "", None)
@@ -109,12 +116,16 @@ class Activity:
         """Freeze at any depth; commands in flight are withdrawn (history keeps the state)."""
         if self.status is ActivityStatus.RUNNING:
             self.root.pause(now)
+            if self.gaze is not None:
+                self.gaze.withdraw(now)
             self.status = ActivityStatus.PAUSED
 
     def resume(self, now: datetime) -> None:
         """Re-enter the interrupted states; their blocks restart what they were doing."""
         if self.status is ActivityStatus.PAUSED:
             self.status = ActivityStatus.RUNNING
+            if self.gaze is not None:
+                self.gaze.restart()
             self.root.resume(now)
 
     def preempt(self, now: datetime, limit_s: float) -> ActivityStatus:

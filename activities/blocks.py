@@ -61,10 +61,12 @@ from pydantic import (
 
 from activities.engine import Event, Io, Node, Runtime, Status
 from activities.errors import BehaviorError
+from activities.gaze import USER, Aim, GazeKeeper, locate, send_aim
 from activities.synonyms import match_activity
 from activities.template import as_text, has_placeholder, is_single_placeholder, render
 from dms.kernel.activity_names import USER_SELECTABLE
 from dms.kernel.expression import CommandHandle, CommandStatus, Priority
+from dms.kernel.gaze import AttentionSettings, aim, point, turn_toward
 from dms.kernel.messages import Channel, ScreenChoice, Speech, Touch
 from dms.kernel.words import digits
 
@@ -476,18 +478,56 @@ class Show(Block[ShowParams]):
 class GestureParams(BlockParams):
     name: str = Field(description="nod, wave, bow, dance_step, ...")
     duration_s: float | None = Field(None, description="By default the gesture's own.")
+    toward: str | None = Field(
+        None,
+        description="A frame to make it toward (user, face:<id>, object:<name>): the hip "
+        "turns to it first and follows it while the gesture lasts (seed 002's task frames).",
+    )
+
+
+TOWARD_DEAD_BAND_RAD = 0.06
+"""A gesture made toward a frame turns again only when the frame moved more than this."""
 
 
 class Gesture(Block[GestureParams]):
-    DOC = "Move: nod, wave, bow, dance_step, ... (durations are the robot's)."
+    DOC = "Move: nod, wave, bow, dance_step, ... (durations are the robot's), toward a frame."
     PARAMS = GestureParams
 
     def begin(self, now: datetime) -> None:
         self.handles = []
+        self.turn: Aim | None = None
+        self.hip: float | None = None
+        self._retarget(now)
         args: dict[str, Any] = {"name": self.args.name}
         if self.args.duration_s is not None:
             args["duration_s"] = self.args.duration_s
         self.command("motion", "gesture", args, now)
+
+    def _retarget(self, now: datetime) -> None:
+        """Turn the hip toward ``toward`` (again, if it moved): a live frame, or its
+        last known pose when the gesture starts."""
+        frame = self.args.toward
+        if frame is None:
+            return
+        located = locate(self.rt.ctx, frame, now)
+        if located is None or (self.hip is not None and not located.live):
+            return
+        hip = turn_toward(located)["hip"]
+        if self.hip is not None and abs(hip - self.hip) < TOWARD_DEAD_BAND_RAD:
+            return
+        if self.turn is not None and not self.turn.handle.finished:
+            self.rt.ctx.expression.interrupt(self.turn.handle, now)
+        self.hip = hip
+        self.turn = send_aim(self.rt.ctx, "turn_to", {"hip": hip}, frame, located, now)
+
+    def withdraw(self, now: datetime) -> None:
+        super().withdraw(now)
+        stop_aim(self, getattr(self, "turn", None), now)
+
+    def update(self, now: datetime) -> Status:
+        if self.args.toward is not None:
+            self._retarget(now)
+        return super().update(now)
 
 
 class LedsParams(BlockParams):
@@ -971,6 +1011,143 @@ def _norm(value: Any) -> str:
     return as_text(value).strip().lower()
 
 
+# ---------------------------------------------------------------- gaze and pointing
+
+
+class LookAtParams(BlockParams):
+    frame: str = Field(
+        USER, description="What to look at: user (whoever is in front), face:<id>, object:<name>."
+    )
+    last_known: bool = Field(
+        True,
+        description="Not seen now: look where it was last seen (seed 002's task frames); "
+        "false: end with lost.",
+    )
+
+
+class LookAt(Block[LookAtParams]):
+    DOC = "Turn the head (the hip if needed) toward a frame; done when it looks there."
+    PARAMS = LookAtParams
+    OUTCOMES = ("done", "lost")
+
+    def begin(self, now: datetime) -> None:
+        self.handles = []
+        self.aim: Aim | None = None
+        ctx = self.rt.ctx
+        located = locate(ctx, self.args.frame, now)
+        if located is None or (not located.live and not self.args.last_known):
+            return
+        targets = aim(located, ctx.joints.get("hip", 0.0))
+        self.aim = send_aim(ctx, "look_at", targets, self.args.frame, located, now)
+
+    def update(self, now: datetime) -> Status:
+        return aimed(self, self.aim, now)
+
+    def withdraw(self, now: datetime) -> None:
+        super().withdraw(now)
+        stop_aim(self, getattr(self, "aim", None), now)
+
+
+class PointAtParams(BlockParams):
+    frame: str = Field(description="What to point at: object:<name>, user, face:<id>.")
+    arm: Literal["left", "right"] | None = Field(
+        None, description="The arm; by default the one on the frame's side."
+    )
+    last_known: bool = Field(
+        True, description="Not seen now: point where it was last seen; false: end with lost."
+    )
+
+
+class PointAt(Block[PointAtParams]):
+    DOC = "Point an arm (the hip turning) at a frame; done when it points there."
+    PARAMS = PointAtParams
+    OUTCOMES = ("done", "lost")
+
+    def begin(self, now: datetime) -> None:
+        self.handles = []
+        self.aim: Aim | None = None
+        located = locate(self.rt.ctx, self.args.frame, now)
+        if located is None or (not located.live and not self.args.last_known):
+            return
+        side = self.args.arm or ("left" if located.position[1] > 0 else "right")
+        targets = point(located, f"{side}_arm")
+        self.aim = send_aim(self.rt.ctx, "point_at", targets, self.args.frame, located, now)
+
+    def update(self, now: datetime) -> Status:
+        return aimed(self, self.aim, now)
+
+    def withdraw(self, now: datetime) -> None:
+        super().withdraw(now)
+        stop_aim(self, getattr(self, "aim", None), now)
+
+
+def aimed(block: Block[Any], sent: Aim | None, now: datetime) -> Status:
+    """``lost`` when there was nothing to aim at; ``done`` once the aim is over (done,
+    failed, ignored: the aim channel is best effort)."""
+    if sent is None:
+        return block.finish("lost")
+    if sent.over(now):
+        if sent.handle.status is CommandStatus.SENT:  # never acknowledged: free the lane
+            block.rt.ctx.expression.interrupt(sent.handle, now)
+        return block.finish("done")
+    return Status.RUNNING
+
+
+def stop_aim(block: Block[Any], sent: Aim | None, now: datetime) -> None:
+    if sent is not None and not sent.handle.finished:
+        block.rt.ctx.expression.interrupt(sent.handle, now)
+
+
+class AttendParams(BlockParams):
+    frame: str = Field(USER, description="Whom to keep looking at: user, face:<id>, object:<name>.")
+    neutral_after_s: float = Field(
+        3.0, gt=0, description="Not seen for this long: look ahead again (neutral)."
+    )
+    dead_band_rad: float = Field(
+        0.06, ge=0, description="A move smaller than this is not made: no jitter."
+    )
+    max_shifts_per_s: float = Field(
+        3.0, gt=0, description="At most this many gaze shifts a second."
+    )
+
+    def settings(self) -> AttentionSettings:
+        return AttentionSettings(self.dead_band_rad, self.max_shifts_per_s, self.neutral_after_s)
+
+
+class AttendBlockParams(AttendParams):
+    seconds: float | None = Field(None, description="How long; null: until the state is stopped.")
+
+
+class Attend(Block[AttendBlockParams]):
+    DOC = "Keep the gaze on a frame (the user's face) while other states run beside it."
+    PARAMS = AttendBlockParams
+
+    def begin(self, now: datetime) -> None:
+        self.handles = []
+        self.keeper = GazeKeeper(self.rt.ctx, self.args.frame, self.args.settings())
+        self.countdown = Countdown(now, self.args.seconds)
+
+    def on_pause(self, now: datetime) -> None:
+        self.keeper.withdraw(now)
+        self.countdown.pause(now)
+
+    def on_resume(self, now: datetime) -> None:
+        self.keeper.restart()
+        self.countdown.resume(now)
+
+    def withdraw(self, now: datetime) -> None:
+        super().withdraw(now)
+        keeper = getattr(self, "keeper", None)
+        if keeper is not None:
+            keeper.withdraw(now)
+
+    def update(self, now: datetime) -> Status:
+        if self.countdown.over(now):
+            return self.finish("done")
+        self.keeper.update(now)
+        return Status.RUNNING
+
+
 BLOCKS: dict[str, type[Block[Any]]] = {
     "speak": Speak,
     "ask": Ask,
@@ -986,5 +1163,8 @@ BLOCKS: dict[str, type[Block[Any]]] = {
     "set_data": SetData,
     "sample": Sample,
     "check": Check,
+    "look_at": LookAt,
+    "point_at": PointAt,
+    "attend": Attend,
 }
 """Every leaf block by the name used in behavior files."""

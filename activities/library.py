@@ -29,6 +29,7 @@ from activities.engine import (
     clear_content_cache,
 )
 from activities.errors import BehaviorError, UnknownBehavior
+from activities.gaze import GazeKeeper
 from activities.spec import BehaviorSpec, StateSpec, check_references, parse_file
 
 PACKAGE_DIR = Path(__file__).parent
@@ -199,7 +200,9 @@ class BehaviorLibrary:
         spec = self.spec(name)
         runtime = Runtime(ctx, args or {}, self.content_dirs())
         root = self.build_root(spec, runtime)
-        return Activity(name, root, runtime)
+        attend = spec.attention()
+        gaze = None if attend is None else GazeKeeper(ctx, attend.frame, attend.settings())
+        return Activity(name, root, runtime, gaze)
 
     def build_root(self, spec: BehaviorSpec, runtime: Runtime) -> Node:
         return self._build(spec.root, spec.name, runtime)

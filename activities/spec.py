@@ -37,7 +37,13 @@ from typing import Any, Literal
 import yaml
 from pydantic import Field
 
-from activities.blocks import BLOCKS, BlockParams, accepts_any_string, param_problems
+from activities.blocks import (
+    BLOCKS,
+    AttendParams,
+    BlockParams,
+    accepts_any_string,
+    param_problems,
+)
 from activities.engine import PREEMPTED
 from activities.errors import BehaviorError
 from activities.template import PLACEHOLDER
@@ -50,7 +56,7 @@ MACHINES = ("state_machine", "sequence")
 GROUPS = (*MACHINES, "concurrence")
 """Containers with a ``states`` mapping."""
 STATE_KEYS = ("transitions", "input_keys", "output_keys", "remapping")
-TOP_KEYS = ("name", "description", "outcomes", "initial", "userdata", "states")
+TOP_KEYS = ("name", "description", "attend", "outcomes", "initial", "userdata", "states")
 
 
 class StateMachineParams(BlockParams):
@@ -201,15 +207,27 @@ class BehaviorSpec:
     description: str | None = None
     path: Path | None = None
     present: tuple[str, ...] = ()
+    attend: str | dict[str, Any] | None = None
+    """``attend:`` at the top as written: the gaze kept on a frame while the behavior
+    runs, a frame's name or :class:`activities.blocks.AttendParams`."""
 
     @property
     def outcomes(self) -> list[str]:
         return list(self.root.params.get("outcomes") or [])
 
+    def attention(self) -> AttendParams | None:
+        """The ``attend:`` settings, validated (the loader checked them)."""
+        if self.attend is None:
+            return None
+        written = {"frame": self.attend} if isinstance(self.attend, str) else self.attend
+        return AttendParams.model_validate(written)
+
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"name": self.name}
         if "description" in self.present:
             out["description"] = self.description
+        if self.attend is not None:
+            out["attend"] = self.attend
         out["outcomes"] = self.root.params.get("outcomes")
         for key in ("initial", "userdata"):
             if key in self.root.params:
@@ -274,6 +292,7 @@ def parse_text(text: str, where: str, path: Path | None = None) -> BehaviorSpec:
     description = data.get("description")
     if description is not None and not isinstance(description, str):
         checker.problem(_line(data, "description"), "", "description must be a string")
+    attend = _parse_attend(checker, data)
     body = {key: data[key] for key in ("outcomes", "initial", "userdata", "states") if key in data}
     located = Located(body)
     located.line, located.key_lines = data.line, data.key_lines
@@ -286,7 +305,24 @@ def parse_text(text: str, where: str, path: Path | None = None) -> BehaviorSpec:
         raise BehaviorError(first + more, checker.problems)
     assert root is not None
     present = tuple(k for k in ("description",) if k in data)
-    return BehaviorSpec(name, root, description, path, present)
+    return BehaviorSpec(name, root, description, path, present, attend)
+
+
+def _parse_attend(checker: _Checker, data: Located) -> str | dict[str, Any] | None:
+    """The top ``attend:``: a frame's name, or the attend block's settings but ``seconds``."""
+    if "attend" not in data:
+        return None
+    raw = data["attend"]
+    line = _line(data, "attend")
+    if isinstance(raw, str):
+        return raw
+    if not isinstance(raw, dict):
+        checker.problem(line, "", "attend: must be a frame's name or a mapping")
+        return None
+    for key, message in param_problems(AttendParams, plain(raw)):
+        at = _line(raw, key) if key in raw and isinstance(raw, Located) else line
+        checker.problem(at, "", f"attend: {message}")
+    return dict(plain(raw))
 
 
 def parse_file(path: Path) -> BehaviorSpec:
@@ -639,6 +675,11 @@ def json_schema() -> dict[str, Any]:
         "properties": {
             "name": {"type": "string", "minLength": 1},
             "description": {"type": "string"},
+            "attend": {
+                "description": "The gaze kept on a frame while the behavior runs: its name "
+                "(user, face:<id>, object:<name>) or the attend block's settings.",
+                "oneOf": [{"type": "string"}, _params_schema(AttendParams)],
+            },
             "outcomes": names,
             "initial": {"type": "string"},
             "userdata": {"type": "object"},

@@ -49,16 +49,19 @@ class Seat:
         self._rng = random.Random(seed)
         self._from: Position = home
         self._to: Position = home
+        self._at_rest = _rounded(home)
         self._start = now
         self._end = now
         self._next = now + timedelta(seconds=self._rng.uniform(*self.settings.still_s))
 
     def face(self, now: datetime) -> Position:
         """The face's position at ``now`` (metres, base frame, rounded to 1 cm)."""
+        if self._end <= now < self._next:
+            return self._at_rest  # most calls: sitting still (no rounding, no tuple)
         while now >= self._next:
             self._move(self._next)
         if now >= self._end:
-            return _rounded(self._to)
+            return self._at_rest
         span = (self._end - self._start).total_seconds()
         done = (now - self._start).total_seconds() / span if span > 0 else 1.0
         (x0, y0, z0), (x1, y1, z1) = self._from, self._to
@@ -68,6 +71,7 @@ class Seat:
         """Move the face to ``where`` over ``seconds`` from ``now`` (a scripted move)."""
         self._from = self.face(now)
         self._to = where
+        self._at_rest = _rounded(where)
         self._start = now
         self._end = now + timedelta(seconds=seconds)
 
@@ -75,6 +79,7 @@ class Seat:
         s = self.settings
         self._from = self._to
         self._to = (self._rng.uniform(*s.x), self._rng.uniform(*s.y), self._rng.uniform(*s.z))
+        self._at_rest = _rounded(self._to)
         self._start = when
         self._end = when + timedelta(seconds=self._rng.uniform(*s.move_s))
         self._next = self._end + timedelta(seconds=self._rng.uniform(*s.still_s))

@@ -43,6 +43,8 @@ def pose(
     """A transform from a translation and a rotation (quaternion x, y, z, w, or roll,
     pitch, yaw in radians); none given: no rotation."""
     matrix = np.eye(4)
+    if rpy is not None and not any(rpy):
+        rpy = None  # no turn (a body at rest): nothing to ask scipy
     if quaternion is not None or rpy is not None:
         # scipy's import takes a quarter of a second: paid on the first rotation made
         # (the first face seen), not on the daemon's start path (issue 14).

@@ -46,6 +46,13 @@ def aim(located: Located, hip_now: float = 0.0) -> dict[str, float]:
     return {"hip": hip, "neck": neck, "head": tilt}
 
 
+def turn_toward(located: Located) -> dict[str, float]:
+    """The hip angle that turns the body toward ``located`` (in the base frame): a
+    gesture made toward someone."""
+    x, y, _ = located.position
+    return {"hip": JOINTS["hip"].clamp(math.atan2(y, x)) if (x or y) else 0.0}
+
+
 def point(located: Located, arm: str = "right_arm") -> dict[str, float]:
     """Hip and ``arm`` angles that point the arm at ``located`` (in the base frame)."""
     x, y, z = located.position

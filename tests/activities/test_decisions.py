@@ -25,7 +25,10 @@ from dms.rules import LiveRules, check_outcomes, rules_from_text
 from sim.harness import Simulation
 
 TALK = BEHAVIORS_DIR / "talk.yaml"
-TALK_CHOOSE = f"{TALK}:22: state TOPICS/TOPIC/CHOOSE:"
+_CHOOSE_LINE = next(
+    n for n, line in enumerate(TALK.read_text().splitlines(), 1) if line.strip() == "CHOOSE:"
+)
+TALK_CHOOSE = f"{TALK}:{_CHOOSE_LINE}: state TOPICS/TOPIC/CHOOSE:"
 GOOD_TOPICS = 'component TalkTopic [ if params.user.age > 80 then activate "family" ]\n'
 BAD_TOPICS = 'component TalkTopic [\n    activate "family"\n    activate "weather"\n]\n'
 
