@@ -29,6 +29,8 @@ USER_FRAME = "user"
 by default."""
 
 DEFAULT_LIVE_S = 2.0
+BODY_FRAMES = tuple(body_frames(NEUTRAL))
+"""The frames the joints move (``torso``, ``neck``, ``head``, the shoulders)."""
 
 JointSource = Callable[[datetime], Mapping[str, float]]
 """The joint state at ``now`` of a robot in the same process (the simulated Mini)."""
@@ -110,5 +112,10 @@ class Scene:
         ):
             return  # the common case, a body at rest, costs one dict comparison
         self.joints.update(positions)
+        self.frames.defer(BODY_FRAMES, self._move_body)
+
+    def _move_body(self) -> None:
+        """The body frames at the joints' last positions (deferred to the next lookup:
+        gaze and pointing work in the base frame and need none of them)."""
         for name, (parent, matrix) in body_frames(self.joints).items():
             self.frames.set(name, matrix, parent)

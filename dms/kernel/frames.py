@@ -18,7 +18,7 @@ Everything is pure and takes ``now``, like the motivation model.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 
@@ -107,6 +107,8 @@ class FrameStore:
     def __init__(self, body: Mapping[str, tuple[str, Matrix]] | None = None) -> None:
         """``body``: the fixed frames (name -> (parent, transform)), e.g. a camera."""
         self._frames: dict[str, _Frame] = {BASE: _Frame(None, np.eye(4), None, math.inf)}
+        self._deferred: Callable[[], None] | None = None
+        self._deferred_frames: frozenset[str] = frozenset()
         for name, (parent, matrix) in (body or {}).items():
             self.set(name, matrix, parent=parent)
 
@@ -136,6 +138,24 @@ class FrameStore:
                 raise ValueError(f"frame {name!r} under {parent!r} would make a cycle")
             ancestor = self._frames[ancestor].parent
         self._frames[name] = _Frame(parent, matrix, stamp, stale_after_s)
+
+    def defer(self, frames: Iterable[str], update: Callable[[], None]) -> None:
+        """Run ``update`` (which moves ``frames``) before the next lookup that goes
+        through one of them, not now: a body that moves every tick is worked out only
+        when someone asks where something is relative to it. The last deferred update
+        replaces an earlier one."""
+        self._deferred = update
+        self._deferred_frames = frozenset(frames)
+
+    def _through_deferred(self, name: str) -> bool:
+        frame = self._frames.get(name)
+        while frame is not None:
+            if name in self._deferred_frames:
+                return True
+            if frame.parent is None:
+                return False
+            name, frame = frame.parent, self._frames.get(frame.parent)
+        return False
 
     def restamp(self, name: str, stamp: datetime) -> None:
         """``name`` was seen again where it was (a perception refreshed, unchanged)."""
@@ -179,6 +199,11 @@ class FrameStore:
         Raises:
             UnknownFrame: either frame was never set.
         """
+        if self._deferred is not None and (
+            self._through_deferred(target) or self._through_deferred(reference)
+        ):
+            update, self._deferred = self._deferred, None
+            update()
         target_in_base, live, age = self._to_base(target, now)
         if reference == BASE:
             return Located(target_in_base, live, age)
