@@ -3,7 +3,8 @@
 ``GET /`` is the page, ``GET /static/...`` its script, style and chart library (shipped in
 the package), ``GET /events`` the stream: one ``snapshot`` event with everything the
 model holds, then each change as it happens: ``robot``, ``state``, ``decision``,
-``structure``, ``agenda`` and ``report`` (a ``dms/errors`` message; an event named
+``structure``, ``agenda``, ``body`` (the joints and the last aim, at most four times a
+second) and ``report`` (a ``dms/errors`` message; an event named
 ``error`` would be taken by the browser for the stream's own failure). ``GET
 /api/snapshot`` is the snapshot as JSON (for scripts and tests). A page that falls too far
 behind is cut off; its browser reconnects at once and starts again from a fresh snapshot.

@@ -20,9 +20,10 @@ from collections.abc import Callable, Iterable, Mapping
 from contextlib import suppress
 from dataclasses import dataclass, field
 from datetime import datetime
-from typing import Any
+from typing import Any, get_args
 
 from dms.kernel import keys
+from dms.kernel.messages import JointName
 
 HISTORY_S = 3600.0
 """How far back the drives chart goes."""
@@ -33,6 +34,12 @@ MAX_ERRORS = 100
 MAX_ROBOTS = 256
 RETRY_STRUCTURE_S = 3.0
 """How soon a behavior structure that did not come (or came for another activity) is asked again."""
+BODY_EVERY_S = 0.25
+"""At most four ``body`` events a second per robot (the joints come at every tick)."""
+BODY_MOVED_RAD = 0.002
+"""Joints that moved less than this since the last ``body`` event are not sent again."""
+JOINT_NAMES = frozenset(get_args(JointName))
+MAX_FRAME_CHARS = 200
 
 Listener = Callable[[str, dict[str, Any]], None]
 """Called with (event name, data) under the model's lock: it must not block."""
@@ -62,6 +69,12 @@ class RobotView:
     ``defaults`` (the shipped drives: the daemon told neither) or ``none``."""
     configured: dict[str, float] = field(default_factory=dict)
     """The thresholds of the daemon's ``dms/config``, once read."""
+    joints: dict[str, Any] | None = None
+    """The last ``robot/joints``: ``{"positions": {joint: radians}, "time": str | None}``."""
+    aim: dict[str, Any] | None = None
+    """The last ``aim`` command: ``{"action", "frame" (None: back to neutral), "time"}``."""
+    body_sent: dict[str, Any] | None = None
+    """The ``body`` event last sent to the pages (what it said, and when)."""
     samples: deque[list[Any]] = field(default_factory=deque)
     """``[time, drives, motivations, wellbeing, activity]``, one a second, the last hour."""
     decisions: deque[dict[str, Any]] = field(default_factory=lambda: deque(maxlen=MAX_DECISIONS))
@@ -76,6 +89,8 @@ class RobotView:
             "state": self.state,
             "structure": self.structure,
             "agenda": self.agenda,
+            "joints": self.joints,
+            "aim": self.aim,
             "thresholds": self.thresholds,
             "thresholds_source": self.thresholds_source,
             "samples": list(self.samples),
@@ -251,6 +266,8 @@ class LiveModel:
                 self._emit("structure", {"robot": robot, "structure": None})
             if _user_id(previous) != _user_id(state):
                 wanted.append("agenda")
+            if view.joints is not None or view.aim is not None:
+                self._send_body(view, now)  # what the joints' throttle held back
             self._emit(
                 "state",
                 {
@@ -327,6 +344,59 @@ class LiveModel:
             return False
         return view.asked_for != name or now - view.asked_at >= RETRY_STRUCTURE_S
 
+    def on_joints(self, robot: str, message: Any) -> None:
+        """One ``robot/joints``: kept (the known joints' finite numbers), and sent to the
+        pages at most every :data:`BODY_EVERY_S` (the joints come at every tick)."""
+        if not isinstance(message, dict):
+            return
+        positions = _numbers(message.get("positions"))
+        positions = {name: angle for name, angle in positions.items() if name in JOINT_NAMES}
+        if not positions:
+            return
+        stamp = message.get("time")
+        with self._lock:
+            view = self._view(robot)
+            if view is None:
+                return
+            view.joints = {
+                "positions": positions,
+                "time": stamp[:64] if isinstance(stamp, str) else None,
+            }
+            self._send_body(view, self._clock())
+
+    def on_command(self, robot: str, command: Any) -> None:
+        """One ``robot/command``: only an ``aim`` is kept (the frame the robot was told to
+        turn toward; ``None`` is back to neutral), the other channels are not the page's."""
+        if not isinstance(command, dict) or command.get("channel") != "aim":
+            return
+        action = command.get("action")
+        if not isinstance(action, str):
+            return
+        frame = (_dict(command.get("args")) or {}).get("frame")
+        with self._lock:
+            view = self._view(robot)
+            if view is None:
+                return
+            now = self._clock()
+            view.aim = {
+                "action": action[:64],
+                "frame": frame[:MAX_FRAME_CHARS] if isinstance(frame, str) else None,
+                "time": now,
+            }
+            self._send_body(view, now)
+
+    def _send_body(self, view: RobotView, now: float) -> None:
+        """A ``body`` event, unless one went out less than :data:`BODY_EVERY_S` ago (the
+        next joints or state sends what was held back) or nothing changed since."""
+        sent = view.body_sent
+        if sent is not None:
+            if 0.0 <= now - sent["at"] < BODY_EVERY_S:
+                return
+            if sent["aim"] == view.aim and _same_positions(sent["joints"], view.joints):
+                return
+        view.body_sent = {"joints": view.joints, "aim": view.aim, "at": now}
+        self._emit("body", {"robot": view.robot, "joints": view.joints, "aim": view.aim})
+
     def on_decision(self, robot: str, decision: Any) -> None:
         if not isinstance(decision, dict):
             return
@@ -372,6 +442,14 @@ class LiveModel:
                 return
             view.agenda = {**agenda, "read": self._clock()}
             self._emit("agenda", {"robot": robot, "agenda": view.agenda})
+
+
+def _same_positions(a: dict[str, Any] | None, b: dict[str, Any] | None) -> bool:
+    """Whether two joint states name the same joints, none moved by :data:`BODY_MOVED_RAD`."""
+    if a is None or b is None:
+        return a is b
+    pa, pb = a["positions"], b["positions"]
+    return pa.keys() == pb.keys() and all(abs(pa[n] - pb[n]) < BODY_MOVED_RAD for n in pa)
 
 
 def _user_id(state: dict[str, Any]) -> Any:

@@ -2,10 +2,11 @@
 thread for the queries it asks for (a query is never made from a Zenoh callback).
 
 Per robot (or ``robots/*`` when none is named): the ``alive/**`` tokens, ``dms/state``,
-``dms/decision`` and ``dms/errors``; ``dms/config`` when a daemon comes (for the drives'
-thresholds), ``dms/behavior`` when the activity changes, and ``agenda/*`` when the user
-changes and every :data:`AGENDA_EVERY_S` seconds. An agenda
-that the daemon does not serve (``[privacy] serve_profiles``, or the viewer's role in a
+``dms/decision``, ``dms/errors``, ``robot/joints`` (where the robot looks) and
+``robot/command`` (of which only the ``aim`` channel is kept); ``dms/config`` when a
+daemon comes (for the drives' thresholds), ``dms/behavior`` when the activity changes,
+and ``agenda/*`` when the user changes and every :data:`AGENDA_EVERY_S` seconds. An
+agenda that the daemon does not serve (``[privacy] serve_profiles``, or the viewer's role in a
 secured deployment) is shown with the daemon's reason.
 """
 
@@ -55,6 +56,12 @@ class BusSource:
             )
             self.client.subscribe_raw(
                 keys.absolute(robot, keys.DMS_ERRORS), self._json(self.model.on_error)
+            )
+            self.client.subscribe_raw(
+                keys.absolute(robot, keys.ROBOT_JOINTS), self._json(self.model.on_joints)
+            )
+            self.client.subscribe_raw(
+                keys.absolute(robot, keys.ROBOT_COMMAND), self._json(self.model.on_command)
             )
             self.client.watch_tokens(
                 keys.absolute(robot, keys.ALIVE_PREFIX + "**"), self.model.on_token

@@ -7,6 +7,7 @@ event, a message or a page change, with a deadline.
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import queue
@@ -17,11 +18,12 @@ import sys
 import threading
 import urllib.request
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
 
 import pytest
+import zenoh
 
 from dms.viewer.model import LiveModel
 from dms.viewer.source import BusSource
@@ -38,6 +40,35 @@ from tests.integration.harness import (
 CHROMIUM = Path("/usr/bin/chromium")
 SCREENSHOT = Path(__file__).resolve().parents[2] / "docs" / "viewer.png"
 QUIZ = {"action": "start", "activity": "quiz", "by": "test"}
+ANN_LEFT = {  # ann, her face 30° to the robot's left (atan2(0.35, 0.6)), a little below
+    "present": True,
+    "user_id": "ann",
+    "ready": True,
+    "face": {"position": {"x": 0.6, "y": 0.35, "z": 0.35}},
+}
+
+
+@contextmanager
+def perceiving(
+    session: zenoh.Session, message: dict[str, Any], every_s: float = 0.2
+) -> Iterator[None]:
+    """A perception module: ``perception/user`` every ``every_s`` while the block runs (a
+    face is live only while it is refreshed)."""
+    stop = threading.Event()
+
+    def run() -> None:
+        while True:
+            put(session, "perception/user", message)
+            if stop.wait(every_s):
+                return
+
+    thread = threading.Thread(target=run, name="perception", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join(5)
 
 
 @contextmanager
@@ -166,6 +197,10 @@ def test_the_viewer_streams_state_structure_and_decisions(tmp_path: Path) -> Non
             )
             root = structure["structure"]["structure"]["root"]
             assert root["name"] == "quiz" and root["initial"] == "INTRO"
+            # The simulated Mini's joints, at most four times a second.
+            body = stream.wait_for("body", lambda b: b["robot"] == "mini" and b["joints"])
+            joints = sorted(body["joints"]["positions"])
+            assert joints == ["head", "hip", "left_arm", "neck", "right_arm"]
             put(session, "perception/touch", {"part": "knee", "kind": "tap"})
             error = stream.wait_for("report", lambda e: e["error"]["key"] == "perception/touch")
             assert "knee" in error["error"]["error"] or "part" in error["error"]["error"]
@@ -201,6 +236,7 @@ def test_the_page_shows_the_activity_and_follows_a_request_in_chromium(tmp_path:
         running_daemon(tmp_path) as (daemon, session),
         running_viewer(daemon.port) as url,
         sync_playwright() as playwright,
+        ExitStack() as perception,
     ):
         states = Collector(session, "robots/mini/dms/state")
         first = states.wait_for(lambda s: s["activity"] is not None)
@@ -221,13 +257,23 @@ def test_the_page_shows_the_activity_and_follows_a_request_in_chromium(tmp_path:
             expect(active).to_have_count(1, timeout=10_000)
             expect(active).to_have_attribute("data-path", running["state"])
 
-            # A user arrives; an app's request: the page follows within 2 s.
-            put(session, "perception/user", {"present": True, "user_id": "ann", "ready": True})
+            # At rest, the head looks straight ahead.
+            gaze = page.get_by_test_id("gaze")
+            expect(gaze).to_have_text("looking straight ahead; hip 0°", timeout=10_000)
+
+            # A user arrives, her face to the left; an app's request: the page follows
+            # within 2 s, and the quiz turns the head toward her within a few seconds.
+            perception.enter_context(perceiving(session, ANN_LEFT))
             expect(page.locator("#user")).to_have_text("ann (ready)", timeout=10_000)
             put(session, "request", QUIZ)
             expect(page.locator("#activity-name")).to_have_text("quiz", timeout=2_000)
             started = page.locator("#decisions li[data-action=start][data-activity=quiz]")
             expect(started).to_have_count(1)
+            # Her face is 30° to the left (the head turns there: from 25° to 35° on the
+            # page), a little below the head.
+            toward_ann = re.compile(r"^looking (2[5-9]|3[0-5])° left, \d+° down; hip ")
+            expect(gaze).to_have_text(toward_ann, timeout=5_000)
+            expect(page.get_by_test_id("aim")).to_contain_text("user")
 
             # Inside the quiz: a nested state is highlighted, with the states around it.
             asking = states.wait_for(
@@ -458,3 +504,75 @@ def test_the_model_reads_what_daemons_publish_loosely() -> None:
     assert view["samples"] == [] and view["decisions"] == []
     assert view["state"]["time"] == "bad time"  # shown as it came, charted nowhere
     json.dumps(snapshot, allow_nan=False)  # what the page gets is plain JSON
+
+
+class _Clock:
+    """A settable clock for the model (epoch seconds)."""
+
+    def __init__(self) -> None:
+        self.now = 1_800_000_000.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def _joints(neck: float, **more: float) -> dict[str, Any]:
+    positions = {"hip": 0.0, "left_arm": 0.0, "right_arm": 0.0, "neck": neck, "head": 0.1}
+    return {"positions": {**positions, **more}, "time": "2026-11-22T10:00:00.000Z"}
+
+
+def test_the_model_sends_the_body_at_most_four_times_a_second() -> None:
+    clock = _Clock()
+    model = LiveModel(clock=clock)
+    sent: list[tuple[float, Any]] = []
+    model.attach(lambda name, data: sent.append((clock.now, data)) if name == "body" else None)
+    start = clock.now
+    for tenth in range(21):  # the head turns left for two seconds, joints ten times a second
+        clock.now = start + tenth / 10
+        model.on_joints("mini", _joints(neck=tenth * 0.05))
+    times = [t for t, _ in sent]
+    assert len(times) <= 9 and all(b - a >= 0.25 for a, b in itertools.pairwise(times))
+    latest = model.snapshot()["robots"]["mini"]["joints"]["positions"]
+    assert latest["neck"] == pytest.approx(1.0)  # the snapshot holds the last joints
+    assert sent[-1][1]["joints"]["positions"]["neck"] < 1.0  # held back by the throttle
+
+    clock.now += 0.5  # the next state sends what was held back, once
+    model.on_state("mini", _state("2026-11-22T10:00:02.500Z"))
+    assert sent[-1][1]["joints"]["positions"]["neck"] == pytest.approx(1.0)
+    count = len(sent)
+    for _ in range(5):  # a body at rest is not sent again
+        clock.now += 0.5
+        model.on_joints("mini", _joints(neck=1.0))
+        model.on_state("mini", _state("2026-11-22T10:00:03.000Z"))
+    assert len(sent) == count
+
+    clock.now += 0.5  # an aim is news even when the joints did not move
+    model.on_command(
+        "mini",
+        {"id": "c1", "channel": "aim", "action": "look_at", "args": {"frame": "user"}},
+    )
+    assert len(sent) == count + 1
+    assert sent[-1][1]["aim"] == {"action": "look_at", "frame": "user", "time": clock.now}
+
+
+def test_the_model_reads_joints_and_commands_loosely() -> None:
+    model = LiveModel(robots=["mini"])
+    joints = BusSource._json(model.on_joints)
+    joints("robots/mini/robot/joints", b"not JSON")
+    joints("robots/mini/robot/joints", b'{"positions": {"neck": NaN}}')
+    model.on_joints("mini", ["neck", 0.5])
+    model.on_joints("mini", {"positions": "neck"})
+    model.on_joints("mini", {"positions": {"tail": 1.0, "neck": True, "head": "down"}})
+    assert model.snapshot()["robots"].get("mini", {}).get("joints") is None
+    model.on_joints("mini", {"positions": {"neck": 0.5, "tail": 1.0, "head": None}, "time": 7})
+    model.on_joints("other", _joints(neck=0.2))  # not watched
+    model.on_command("mini", {"channel": "speech", "action": "say", "args": {"text": "hi"}})
+    model.on_command("mini", {"channel": "aim", "action": 3})
+    view = model.snapshot()["robots"]["mini"]
+    assert view["joints"] == {"positions": {"neck": 0.5}, "time": None}
+    assert view["aim"] is None and list(model.snapshot()["robots"]) == ["mini"]
+    model.on_command("mini", {"channel": "aim", "action": "look_at", "args": "user"})
+    aim = model.snapshot()["robots"]["mini"]["aim"]
+    assert aim["action"] == "look_at" and aim["frame"] is None  # no frame: back to neutral
+    model.on_command("mini", {"channel": "aim", "action": "point_at", "args": {"frame": "x" * 999}})
+    assert len(model.snapshot()["robots"]["mini"]["aim"]["frame"]) == 200

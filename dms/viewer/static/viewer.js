@@ -12,7 +12,7 @@ let robots = {};          // robot id -> view (the snapshot's shape)
 let historyS = 3600;
 let selected = decodeURIComponent(location.hash.slice(1)) || null;
 let scheduled = false;
-const dirty = new Set(); // parts to redraw: "robots", "state", "structure", "chart", "decisions", "errors", "agenda", "all"
+const dirty = new Set(); // parts to redraw: "robots", "state", "structure", "chart", "decisions", "errors", "agenda", "body", "all"
 
 function $(id) { return document.getElementById(id); }
 
@@ -51,7 +51,7 @@ function obj(value) { return value && typeof value === "object" && !Array.isArra
 
 function blank(robot) {
   return { robot, alive: false, since: null, tokens: [], state: null, structure: null, agenda: null,
-           thresholds: {}, thresholds_source: "none", samples: [], decisions: [], errors: [] };
+           joints: null, aim: null, thresholds: {}, thresholds_source: "none", samples: [], decisions: [], errors: [] };
 }
 
 function view(robot) {
@@ -99,6 +99,7 @@ const handlers = {
   },
   structure(data) { view(data.robot).structure = data.structure; dirty.add("structure"); },
   agenda(data) { view(data.robot).agenda = data.agenda; dirty.add("agenda"); },
+  body(data) { Object.assign(view(data.robot), { joints: data.joints, aim: data.aim }); dirty.add("body"); },
 };
 
 function connect() {
@@ -142,6 +143,7 @@ function render() {
     if (all || dirty.has("decisions")) renderDecisions(v);
     if (all || dirty.has("errors")) renderErrors(v);
     if (all || dirty.has("agenda")) renderAgenda(v);
+    if (all || dirty.has("body")) renderBody(v);
   }
   dirty.clear();
 }
@@ -218,6 +220,57 @@ function renderInputs(v) {
     cell.append(el("span", { class: "badge " + (health || "") }, health || "not an input"));
     row.append(cell, el("td", {}, v.tokens.includes(name) ? "declared" : "–"));
     body.append(row);
+  }
+}
+
+// ------------------------------------------------------------------ the body
+
+// Radians from robot/joints: a positive hip or neck turn looks left, a positive head tilt
+// looks down, an arm at 0 hangs down and at 90° points forward. Where the head points is
+// the hip's turn plus the neck's.
+
+function angle(rad) { return typeof rad === "number" && Number.isFinite(rad) ? rad : null; }
+
+function degrees(rad) { return Math.round((rad * 180) / Math.PI); }
+
+function side(rad, positive, negative, zero) {
+  const d = degrees(rad);
+  return d === 0 ? zero : `${Math.abs(d)}° ${d > 0 ? positive : negative}`;
+}
+
+function gazeText(p) {
+  const hip = angle(p.hip), neck = angle(p.neck), head = angle(p.head);
+  if (hip === null && neck === null && head === null) return "–";
+  const parts = [side((hip || 0) + (neck || 0), "left", "right", "straight ahead")];
+  if (head !== null && degrees(head) !== 0) parts.push(side(head, "down", "up", ""));
+  return `looking ${parts.join(", ")}; hip ${hip === null ? "–" : side(hip, "left", "right", "0°")}`;
+}
+
+function armText(rad) {
+  if (rad === null) return "–";
+  const d = degrees(rad);
+  return `${d}° ${d < 15 ? "down" : d < 60 ? "raised a little" : d <= 120 ? "forward" : "up"}`;
+}
+
+function renderBody(v) {
+  const joints = obj(v.joints);
+  const p = joints ? obj(joints.positions) || {} : {};
+  const gaze = $("gaze");
+  gaze.textContent = joints ? gazeText(p) : "no joints reported";
+  gaze.title = joints ? Object.entries(p).map(([n, r]) => `${n} ${num((angle(r) ?? NaN) * 180 / Math.PI, 1)}°`).join(", ") +
+                        (joints.time ? ` at ${isoClock(joints.time)}` : "") : "";
+  const left = angle(p.left_arm), right = angle(p.right_arm);
+  $("arms").textContent = left === null && right === null ? "–" : `left ${armText(left)} · right ${armText(right)}`;
+  const aim = obj(v.aim);
+  $("aim").textContent = aim ? `${aim.action} ${aim.frame === null ? "(back to neutral)" : aim.frame} at ${clock(aim.time)}`
+                             : "no aim command seen";
+  // The dial, seen from above (forward is up): the hip's turn grey, the head's blue.
+  const yaw = (angle(p.hip) || 0) + (angle(p.neck) || 0), hip = angle(p.hip) || 0;
+  const dial = $("gaze-dial");
+  dial.classList.toggle("none", !joints);
+  for (const [id, a, r] of [["dial-gaze", yaw, 28], ["dial-hip", hip, 20]]) {
+    $(id).setAttribute("x2", (-r * Math.sin(a)).toFixed(1));
+    $(id).setAttribute("y2", (-r * Math.cos(a)).toFixed(1));
   }
 }
 
