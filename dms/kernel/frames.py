@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from datetime import datetime
+from datetime import datetime, timedelta
 
 import numpy as np
 from numpy.typing import NDArray
@@ -109,6 +109,9 @@ class FrameStore:
         self._frames: dict[str, _Frame] = {BASE: _Frame(None, np.eye(4), None, math.inf)}
         self._deferred: Callable[[], None] | None = None
         self._deferred_frames: frozenset[str] = frozenset()
+        self.moves = 0
+        """Counts the frames set (moved) and deferred updates run: a reader that saw the
+        same count before knows nothing has moved since (restamps do not count)."""
         for name, (parent, matrix) in (body or {}).items():
             self.set(name, matrix, parent=parent)
 
@@ -138,6 +141,7 @@ class FrameStore:
                 raise ValueError(f"frame {name!r} under {parent!r} would make a cycle")
             ancestor = self._frames[ancestor].parent
         self._frames[name] = _Frame(parent, matrix, stamp, stale_after_s)
+        self.moves += 1
 
     def defer(self, frames: Iterable[str], update: Callable[[], None]) -> None:
         """Run ``update`` (which moves ``frames``) before the next lookup that goes
@@ -156,6 +160,24 @@ class FrameStore:
                 return False
             name, frame = frame.parent, self._frames.get(frame.parent)
         return False
+
+    def live_until(self, name: str) -> datetime | None:
+        """When ``name`` stops being live unless seen again (the earliest over the
+        perceived frames it hangs from); None: never (only body frames on the way).
+
+        Raises:
+            UnknownFrame: ``name`` was never set.
+        """
+        frame = self._frames.get(name)
+        if frame is None:
+            raise UnknownFrame(name)
+        until: datetime | None = None
+        while frame.parent is not None:
+            if frame.stamp is not None and math.isfinite(frame.stale_after_s):
+                ends = frame.stamp + timedelta(seconds=frame.stale_after_s)
+                until = ends if until is None else min(until, ends)
+            frame = self._frames[frame.parent]
+        return until
 
     def restamp(self, name: str, stamp: datetime) -> None:
         """``name`` was seen again where it was (a perception refreshed, unchanged)."""
@@ -204,6 +226,7 @@ class FrameStore:
         ):
             update, self._deferred = self._deferred, None
             update()
+            self.moves += 1
         target_in_base, live, age = self._to_base(target, now)
         if reference == BASE:
             return Located(target_in_base, live, age)

@@ -83,6 +83,9 @@ class Attention:
         self._sent: dict[str, float] | None = None
         self._sent_at: datetime | None = None
         self.shifts = 0
+        self._settled: tuple[int, float, datetime] | None = None
+        """(the store's moves, the hip, live until): the last full update found nothing
+        to send for a live frame; while these hold, nothing can have changed."""
 
     @property
     def sent(self) -> Mapping[str, float] | None:
@@ -93,6 +96,10 @@ class Attention:
         self, frames: FrameStore, now: datetime, hip_now: float = 0.0
     ) -> dict[str, float] | None:
         """The gaze targets to send now, or None (nothing to change, or too soon)."""
+        settled = self._settled
+        if settled is not None and settled[:2] == (frames.moves, hip_now) and now <= settled[2]:
+            return None  # most ticks: the face has not moved, nor gone stale
+        self._settled = None
         try:
             located: Located | None = frames.lookup(self.frame, now)
         except UnknownFrame:
@@ -107,6 +114,10 @@ class Attention:
         if previous is not None:
             moved = max(abs(wanted[name] - previous[name]) for name in GAZE_JOINTS)
             if moved < self.settings.dead_band_rad:
+                if located is not None and located.live:
+                    until = frames.live_until(self.frame)
+                    if until is not None:
+                        self._settled = (frames.moves, hip_now, until)
                 return None
             if self._sent_at is not None:
                 since = (now - self._sent_at).total_seconds()

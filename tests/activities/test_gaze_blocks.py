@@ -17,9 +17,11 @@ import pytest
 
 from activities import Activity, ActivityContext, ActivityStatus, BehaviorError, BehaviorLibrary
 from activities.spec import parse_text
+from dms.kernel import keys
 from dms.kernel.body import JOINTS
 from dms.kernel.frames import FrameStore, pose
 from dms.kernel.gaze import EYE_HEIGHT_M
+from dms.kernel.messages import UserPerception
 from dms.scene import Scene
 from tests.activities.conftest import Bench, write_behaviors
 
@@ -277,3 +279,41 @@ def test_a_wrong_attend_is_refused_with_its_line(attend: str, message: str) -> N
     with pytest.raises(BehaviorError) as caught:
         parse_text(text, "x.yaml")
     assert str(caught.value).startswith("x.yaml:2:") and message in str(caught.value)
+
+
+def test_a_face_refreshed_unchanged_sends_nothing_and_its_loss_is_still_seen(
+    tmp_path: Path,
+) -> None:
+    """The gaze keeper skips its work while nothing moved and the face is live; that
+    shortcut must not hide the face going stale (no refresh) or moving."""
+    bench = _bench(tmp_path, {"chat": ATTEND_WHILE_TALKING})
+    seen = UserPerception.model_validate(
+        {"present": True, "user_id": "ann", "face": {"position": {"x": FACE_X, "y": 0.3, "z": 0.4}}}
+    )
+    activity = bench.start(bench.create("chat"))
+
+    def tick(message: UserPerception | None) -> None:
+        bench.now += timedelta(seconds=0.5)
+        values = {keys.PERCEPTION_USER: message} if message is not None else {}
+        fresh = frozenset(values)
+        bench.scene.update(values, fresh, bench.now)
+        bench.expression.update(bench.now)
+        activity.tick(bench.now)
+
+    for _ in range(40):  # 20 s of the same face, refreshed at every tick
+        tick(seen)
+    assert len(bench.aims()) == 2  # neutral at the start (nothing seen yet), then the face
+    assert bench.joints()["neck"] == pytest.approx(math.atan2(0.3, FACE_X), abs=0.02)
+    moved = UserPerception.model_validate(
+        {
+            "present": True,
+            "user_id": "ann",
+            "face": {"position": {"x": FACE_X, "y": -0.3, "z": 0.4}},
+        }
+    )
+    for _ in range(4):
+        tick(moved)
+    assert bench.joints()["neck"] == pytest.approx(-math.atan2(0.3, FACE_X), abs=0.02)
+    for _ in range(12):  # no refresh: live 1 s more, then neutral 2 s after it was seen
+        tick(None)
+    assert bench.joints()["neck"] == pytest.approx(0.0)
