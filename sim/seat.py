@@ -54,6 +54,13 @@ class Seat:
         self._end = now
         self._next = now + timedelta(seconds=self._rng.uniform(*self.settings.still_s))
 
+    def sit(self, now: datetime) -> None:
+        """Sit down again at ``now`` where the face was last: the next move comes after
+        a still spell from now (no catching up on the moves of the time away)."""
+        self._from = self._to
+        self._start = self._end = now
+        self._next = now + timedelta(seconds=self._rng.uniform(*self.settings.still_s))
+
     def face(self, now: datetime) -> Position:
         """The face's position at ``now`` (metres, base frame, rounded to 1 cm)."""
         if self._end <= now < self._next:

@@ -113,6 +113,10 @@ class SimulatedUser:
             tuple[tuple[str, bool, float, Position | None] | None, UserPerception] | None
         ) = None
         """The last perception and what it was made of: sent again while that holds."""
+        self._last_perceived: (
+            tuple[tuple[bool, bool, str | None, Position | None], UserPerception] | None
+        ) = None
+        """What the last call saw (presence, readiness, activity, face) and its answer."""
         self._question: _Question | None = None
         self._queue: list[_Pending] = []
         self._order = itertools.count()
@@ -127,6 +131,8 @@ class SimulatedUser:
         self.done = set()
         if self.seat is None:
             self.seat = Seat(now, f"{self.user_id}:seat")
+        else:
+            self.seat.sit(now)  # back in the chair: the moves while away never happened
         self._schedule(
             now + timedelta(seconds=_draw(self.rng, self.persona.arrive_after_s)), self._sit
         )
@@ -148,12 +154,19 @@ class SimulatedUser:
     def perception(self, now: datetime | None = None) -> UserPerception:
         """What a perception module publishes about this user now (with ``now``: where
         their face is, too)."""
+        face = None
+        if self.present and self.seat is not None and now is not None:
+            face = self.seat.face(now)
+        state = (self.present, self.ready, self.activity, face)
+        last = self._last_perceived
+        if last is not None and last[0] == state:
+            return last[1]  # most ticks: nothing changed (the seat's position is one object)
         key: tuple[str, bool, float, Position | None] | None = None
         if self.present:
             engagement = self.persona.liking(self.activity) if self.activity else 0.7
-            face = self.seat.face(now) if self.seat is not None and now is not None else None
             key = (self.user_id, self.ready, round(engagement, 2), face)
         if self._perceived is not None and self._perceived[0] == key:
+            self._last_perceived = (state, self._perceived[1])
             return self._perceived[1]  # a frozen message: built once, not every tick
         if key is None:
             message = UserPerception(present=False, user_id=None, ready=False, engagement=None)
@@ -169,6 +182,7 @@ class SimulatedUser:
                 else Pose(position=Vector3(x=face[0], y=face[1], z=face[2])),
             )
         self._perceived = (key, message)
+        self._last_perceived = (state, message)
         return message
 
     # ------------------------------------------------------------ the queue
