@@ -137,7 +137,9 @@ class RobotJoints(Inbound):
     """``robot/joints``: the robot's joint positions in radians (the simulated Mini
     publishes it; an external robot may, with ``--robot zenoh``)."""
 
-    positions: dict[str, Radians] = Field(max_length=16)
+    positions: dict[str, Radians] = Field(
+        max_length=16, json_schema_extra={"propertyNames": {"enum": list(get_args(JointName))}}
+    )
     """By joint: ``hip``, ``left_arm``, ``right_arm``, ``neck``, ``head``."""
     time: str | None = None
     """When the positions were measured (ISO-8601 UTC); informative."""
