@@ -29,6 +29,9 @@ USER_FRAME = "user"
 by default."""
 
 DEFAULT_LIVE_S = 2.0
+MAX_PERCEIVED = 256
+"""Named frames kept (faces, objects): past it the one seen longest ago is forgotten, so
+a detector that invents a new name a frame cannot grow a months-long daemon."""
 BODY_FRAMES = tuple(body_frames(NEUTRAL))
 """The frames the joints move (``torso``, ``neck``, ``head``, the shoulders)."""
 
@@ -63,6 +66,8 @@ class Scene:
         self._face: Pose | None = None
         self._face_name: str | None = None
         """The face last set (a refresh of the same message only restamps it)."""
+        self._named: dict[str, None] = {}
+        """The faces and objects set, least recently seen first (for :data:`MAX_PERCEIVED`)."""
 
     def update(
         self, values: Mapping[str, BaseModel], fresh: AbstractSet[str], now: datetime
@@ -77,12 +82,8 @@ class Scene:
             objects = values.get(keys.PERCEPTION_OBJECTS)
             if isinstance(objects, ObjectsPerception):
                 for seen in objects.objects:
-                    self.frames.set(
-                        OBJECT_PREFIX + seen.name,
-                        matrix_of(seen.pose),
-                        BASE,
-                        now,
-                        self.object_live_s,
+                    self._set_named(
+                        OBJECT_PREFIX + seen.name, matrix_of(seen.pose), now, self.object_live_s
                     )
         if self._joint_source is not None:
             self.set_joints(self._joint_source(now))
@@ -98,12 +99,24 @@ class Scene:
             self.frames.restamp(USER_FRAME, now)
             if named is not None:
                 self.frames.restamp(named, now)
+                self._named.pop(named, None)  # seen now: the last to be forgotten
+                self._named[named] = None
             return
         self._face, self._face_name = face, named
         matrix = matrix_of(face)
         self.frames.set(USER_FRAME, matrix, BASE, now, self.face_live_s)
         if named is not None:
-            self.frames.set(named, matrix, BASE, now, self.face_live_s)
+            self._set_named(named, matrix, now, self.face_live_s)
+
+    def _set_named(self, name: str, matrix: Matrix, now: datetime, live_s: float) -> None:
+        """Set a perceived frame; forget the one seen longest ago past :data:`MAX_PERCEIVED`."""
+        self.frames.set(name, matrix, BASE, now, live_s)
+        self._named.pop(name, None)
+        self._named[name] = None
+        if len(self._named) > MAX_PERCEIVED:
+            oldest = next(iter(self._named))
+            del self._named[oldest]
+            self.frames.forget(oldest)
 
     def set_joints(self, positions: Mapping[str, float]) -> None:
         """The body frames follow a joint state (unnamed joints keep their position)."""

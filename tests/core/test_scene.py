@@ -192,3 +192,23 @@ def test_an_aim_the_robot_never_acknowledges_does_not_make_it_offline() -> None:
 def test_a_joint_message_is_validated_as_a_whole() -> None:
     with pytest.raises(ValidationError):
         RobotJoints.model_validate({"positions": {"head": float("nan")}})
+
+
+def test_a_detector_inventing_names_cannot_grow_the_frames_without_bound() -> None:
+    """Months beside a tag detector that misreads: the scene keeps the 256 frames seen
+    most recently, and the one in use stays."""
+    from dms.scene import MAX_PERCEIVED
+
+    run = Ticking()
+    ann = _user(0.1)  # one frozen message, refreshed: the face is only restamped
+    for index in range(2_000):
+        run.feed(keys.PERCEPTION_USER, ann)
+        message = ObjectsPerception.model_validate(
+            {"objects": [{"name": f"junk{index}", "pose": {"position": {"x": 1, "y": 0, "z": 0}}}]}
+        )
+        run.feed(keys.PERCEPTION_OBJECTS, message)
+        now = run.tick()
+    perceived = [n for n in run.scene.frames.names if n.startswith(("object:", "face:"))]
+    assert len(perceived) == MAX_PERCEIVED
+    assert "object:junk1999" in perceived and "object:junk0" not in perceived
+    assert run.scene.frames.lookup("face:ann", now).live
