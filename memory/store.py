@@ -11,11 +11,14 @@ will not help). The daemon spools the first and quarantines the second.
 Several robots may write one profile at once (docs/fleet.md). No write loses
 another's: counters of activity scores are incremented in the database (an upsert,
 ``INSERT ... ON CONFLICT DO UPDATE SET n = n + excluded.n``); histories are appended;
-the other fields are written through the row's version (``users.version``, checked by
-the ORM), and a write made on a stale read is retried on the fresh row (its fields are
-merged into the other write's, never over a row it did not read). A write that carries
-a ``write_id`` (the daemon's all do) records it in ``applied_writes`` in the same
-transaction and is skipped when it comes again (a spool replayed after a crash).
+the other fields are written through the row's version (``users.version``: the UPDATE
+names the version read), and a write made on a stale read is retried on the fresh row
+(its fields are merged into the other write's, never over a row it did not read).
+Writes are SQLAlchemy Core statements built once (an ORM unit of work was nine tenths
+of a write's cost); exports, erasure and the other reads of many rows use the ORM.
+A write that carries a ``write_id`` (the daemon's all do) records it in
+``applied_writes`` in the same transaction and is skipped when it comes again (a spool
+replayed after a crash).
 """
 
 from __future__ import annotations
@@ -26,10 +29,24 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager, suppress
+from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 from typing import Any, Protocol, TypeVar
 
-from sqlalchemy import Table, case, delete, insert, inspect, literal, select, update
+from sqlalchemy import (
+    Connection,
+    Executable,
+    RowMapping,
+    Select,
+    Table,
+    bindparam,
+    case,
+    delete,
+    insert,
+    inspect,
+    select,
+    update,
+)
 from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import (
@@ -170,8 +187,50 @@ def _check_name(field: str, value: Any, max_length: int = 50) -> str:
     return value
 
 
-def snapshot(row: UserRow) -> Profile:
-    """The frozen :class:`Profile` of a loaded row."""
+USERS: Table = UserRow.__table__  # type: ignore[assignment]
+SCORES: Table = ActivityScoreRow.__table__  # type: ignore[assignment]
+SESSIONS: Table = SessionRow.__table__  # type: ignore[assignment]
+RUNS: Table = ActivityRunRow.__table__  # type: ignore[assignment]
+FEEDBACK: Table = FeedbackRow.__table__  # type: ignore[assignment]
+ANSWERS: Table = AnswerRow.__table__  # type: ignore[assignment]
+APPLIED: Table = AppliedWriteRow.__table__  # type: ignore[assignment]
+_USER_COLUMNS = tuple(column.key for column in USERS.columns)
+_COUNTERS = ("feedback_sum", "feedback_count", "completions", "cancellations")
+
+
+@dataclass
+class _UserFields:
+    """The user's row as read for a field write, to be edited by the write's ``change``:
+    a plain object, no ORM session behind it. Edits assign new values (a new dict for
+    ``attributes``), never mutate what was read: the columns written are those that
+    differ from the read."""
+
+    user_id: str
+    created_at: datetime
+    updated_at: datetime
+    name: str | None
+    age: int | None
+    sex: str | None
+    language: str | None
+    hearing: bool | None
+    dialogue_mode: str | None
+    interaction_style: str
+    volume: float | None
+    distance: float | None
+    robot_initiative_frequency: str | None
+    proactivity: str
+    proactivity_confidence: float
+    bondlevel: int | None
+    favorite_room: str | None
+    attributes: dict[str, Any]
+    voice_failures: int
+    screen_failures: int
+    initiative_taken: int
+    initiative_offered: int
+    version: int
+
+
+def _profile(row: UserRow | _UserFields, scores: dict[str, ActivityScore]) -> Profile:
     return Profile(
         user_id=row.user_id,
         created_at=row.created_at,
@@ -191,7 +250,20 @@ def snapshot(row: UserRow) -> Profile:
         bondlevel=row.bondlevel,
         favorite_room=row.favorite_room,
         attributes=dict(row.attributes or {}),
-        scores={
+        scores=scores,
+        voice_failures=row.voice_failures,
+        screen_failures=row.screen_failures,
+        initiative_taken=row.initiative_taken,
+        initiative_offered=row.initiative_offered,
+        version=row.version,
+    )
+
+
+def snapshot(row: UserRow) -> Profile:
+    """The frozen :class:`Profile` of a loaded row."""
+    return _profile(
+        row,
+        {
             score.activity: ActivityScore(
                 feedback_sum=score.feedback_sum,
                 feedback_count=score.feedback_count,
@@ -200,12 +272,100 @@ def snapshot(row: UserRow) -> Profile:
             )
             for score in row.scores
         },
-        voice_failures=row.voice_failures,
-        screen_failures=row.screen_failures,
-        initiative_taken=row.initiative_taken,
-        initiative_offered=row.initiative_offered,
-        version=row.version,
     )
+
+
+# Core statements of the write path, built once (issue 14: the ORM's unit of work was
+# nine tenths of a profile write). SQLAlchemy caches their compiled form by statement.
+
+
+def _load_statement(lock: bool) -> Select[Any]:
+    """The user joined with their scores, as the ORM's joined load read them; ``lock``:
+    ``FOR UPDATE OF users`` (PostgreSQL's field writes)."""
+    statement = (
+        select(
+            *USERS.columns,
+            *(SCORES.c[name].label(f"score_{name}") for name in ("activity", *_COUNTERS)),
+        )
+        .select_from(USERS.outerjoin(SCORES, USERS.c.user_id == SCORES.c.user_id))
+        .where(USERS.c.user_id == bindparam("key_user_id"))
+    )
+    return statement.with_for_update(of=USERS) if lock else statement
+
+
+_LOAD = _load_statement(lock=False)
+_LOAD_FOR_UPDATE = _load_statement(lock=True)
+_USER_EXISTS = select(USERS.c.user_id).where(USERS.c.user_id == bindparam("key_user_id"))
+_SESSION_EXISTS = select(SESSIONS.c.id).where(SESSIONS.c.id == bindparam("key_id"))
+_TOUCH = (
+    update(USERS)
+    .where(USERS.c.user_id == bindparam("key_user_id"))
+    .values(
+        version=USERS.c.version + 1,
+        updated_at=case(
+            (
+                USERS.c.updated_at < bindparam("key_when", type_=UtcDateTime()),
+                bindparam("key_when", type_=UtcDateTime()),
+            ),
+            else_=USERS.c.updated_at,
+        ),
+    )
+)
+_WRITE_FIELDS = update(USERS).where(
+    USERS.c.user_id == bindparam("key_user_id"), USERS.c.version == bindparam("key_version")
+)
+"""Set the columns given as parameters if the version is still the one read (the
+ORM's ``version_id_col`` check, by hand)."""
+_END_SESSION = update(SESSIONS).where(SESSIONS.c.id == bindparam("key_id"))
+_INSERT_USER = insert(USERS)
+_INSERT_SESSION = insert(SESSIONS)
+_INSERT_RUN = insert(RUNS)
+_INSERT_FEEDBACK = insert(FEEDBACK)
+_INSERT_ANSWER = insert(ANSWERS)
+_INSERT_APPLIED = insert(APPLIED)
+_APPLIED_RESULT = select(APPLIED.c.result).where(APPLIED.c.write_id == bindparam("key_write_id"))
+
+
+def _upserts(dialect: str) -> tuple[Executable, Executable] | None:
+    """The dialect's (score upsert, user insert-if-missing), None without upserts.
+
+    The score upsert adds all four counters (``n = n + excluded.n``); a counter the write
+    does not move is added 0, which leaves it as it was."""
+    if dialect not in ("sqlite", "postgresql"):
+        return None
+    module: Any = sqlite if dialect == "sqlite" else postgresql
+    bump = module.insert(SCORES)
+    return (
+        bump.on_conflict_do_update(
+            index_elements=["user_id", "activity"],
+            set_={name: SCORES.c[name] + bump.excluded[name] for name in _COUNTERS},
+        ),
+        module.insert(USERS).on_conflict_do_nothing(index_elements=["user_id"]),
+    )
+
+
+def _load(
+    connection: Connection, user_id: str, lock: bool = False
+) -> tuple[RowMapping, dict[str, ActivityScore]]:
+    """The user's columns and scores; ProfileNotFound without the user."""
+    rows = connection.execute(_LOAD_FOR_UPDATE if lock else _LOAD, {"key_user_id": user_id}).all()
+    if not rows:
+        raise ProfileNotFound(f"no profile for user {user_id!r}")
+    scores = {
+        row.score_activity: ActivityScore(
+            feedback_sum=row.score_feedback_sum,
+            feedback_count=row.score_feedback_count,
+            completions=row.score_completions,
+            cancellations=row.score_cancellations,
+        )
+        for row in rows
+        if row.score_activity is not None
+    }
+    return rows[0]._mapping, scores
+
+
+def _fields(columns: RowMapping) -> _UserFields:
+    return _UserFields(**{name: columns[name] for name in _USER_COLUMNS})
 
 
 class UserData(Protocol):
@@ -289,12 +449,12 @@ class ProfileStore:
                 "it empty"
             )
         self._sessions = sessionmaker(self.engine, expire_on_commit=False)
-        self._reads = sessionmaker(
-            self.engine.execution_options(isolation_level="AUTOCOMMIT"), expire_on_commit=False
-        )
-        """Sessions for one-statement reads: no BEGIN and COMMIT round trips (a profile
-        load is one SELECT of the user joined with their scores, consistent by itself)."""
+        self._read_engine = self.engine.execution_options(isolation_level="AUTOCOMMIT")
+        """For one-statement reads: no BEGIN and COMMIT round trips (a profile load is one
+        SELECT of the user joined with their scores, consistent by itself)."""
+        self._reads = sessionmaker(self._read_engine, expire_on_commit=False)
         self._dialect = self.engine.dialect.name
+        self._upserts = _upserts(self._dialect)
         self._count_lock = threading.Lock()
         self._since_prune = 0
         self.retries = 0
@@ -314,9 +474,23 @@ class ProfileStore:
             raise classify(error) from None
 
     @contextmanager
+    def _read_connection(self) -> Iterator[Connection]:
+        """:meth:`_read` without an ORM session, for Core statements."""
+        try:
+            with self._read_engine.connect() as connection:
+                yield connection
+        except ProfileError:
+            raise
+        except SQLAlchemyError as error:
+            raise classify(error) from None
+
+    @contextmanager
     def _session(self) -> Iterator[Session]:
         """One short transaction; database failures become StoreUnavailable or
-        StoreRefused (:func:`classify`)."""
+        StoreRefused (:func:`classify`).
+
+        The writes run Core statements on its connection (``session.connection()``);
+        the session is what the transaction and its events hang from."""
         try:
             with self._sessions.begin() as session:
                 yield session
@@ -336,24 +510,16 @@ class ProfileStore:
             raise ProfileNotFound(f"no profile for user {user_id!r}")
         return row
 
-    def _user_to_write(self, session: Session, user_id: str) -> UserRow:
-        """The user's row, read to be written: on PostgreSQL locked (``SELECT ... FOR
-        UPDATE``) until the transaction ends, so the other robots' writes of this user
-        wait instead of failing their version check; elsewhere read plainly (the version
-        check then catches a concurrent write and the write is retried)."""
-        if self._dialect != "postgresql":
-            return self._user(session, user_id)
-        row = session.get(
-            UserRow, user_id, with_for_update={"of": UserRow.__table__}, populate_existing=True
-        )
-        if row is None:
+    @staticmethod
+    def _check_user(connection: Connection, user_id: str) -> None:
+        if connection.execute(_USER_EXISTS, {"key_user_id": user_id}).first() is None:
             raise ProfileNotFound(f"no profile for user {user_id!r}")
-        return row
 
-    def _bump_score(self, session: Session, user_id: str, activity: str, **deltas: Any) -> None:
+    def _bump_score(
+        self, connection: Connection, user_id: str, activity: str, **deltas: float
+    ) -> None:
         """Add ``deltas`` to the user's score of ``activity`` in the database, creating the
         row if needed: one statement, so concurrent writers neither collide nor lose one."""
-        table: Table = ActivityScoreRow.__table__  # type: ignore[assignment]
         values: dict[str, Any] = {
             "user_id": user_id,
             "activity": activity,
@@ -363,50 +529,31 @@ class ProfileStore:
             "cancellations": 0,
             **deltas,
         }
-        if self._dialect in ("sqlite", "postgresql"):
-            module: Any = sqlite if self._dialect == "sqlite" else postgresql
-            statement = module.insert(table).values(values)
-            session.execute(
-                statement.on_conflict_do_update(
-                    index_elements=["user_id", "activity"],
-                    set_={name: table.c[name] + statement.excluded[name] for name in deltas},
-                )
-            )
+        if self._upserts is not None:
+            connection.execute(self._upserts[0], values)
             return
-        changed = session.execute(
-            update(table)
-            .where(table.c.user_id == user_id, table.c.activity == activity)
-            .values({name: table.c[name] + value for name, value in deltas.items()})
+        changed = connection.execute(
+            update(SCORES)
+            .where(SCORES.c.user_id == user_id, SCORES.c.activity == activity)
+            .values({name: SCORES.c[name] + value for name, value in deltas.items()})
         )
-        if not changed.rowcount:  # type: ignore[attr-defined]
-            session.execute(insert(table).values(values))
+        if not changed.rowcount:
+            connection.execute(insert(SCORES), values)
 
     @staticmethod
-    def _touch(session: Session, user_id: str, when: datetime) -> None:
+    def _touch(connection: Connection, user_id: str, when: datetime) -> None:
         """Bump the user's version and move ``updated_at`` up to ``when`` (never back),
         in the database; ProfileNotFound without the user. Locks the row (PostgreSQL)
         until the transaction ends, so the writes of one user queue there."""
-        later = literal(when, UtcDateTime())
-        changed = session.execute(
-            update(UserRow)
-            .where(UserRow.user_id == user_id)
-            .values(
-                version=UserRow.version + 1,
-                updated_at=case((UserRow.updated_at < later, later), else_=UserRow.updated_at),
-            )
-            .execution_options(synchronize_session=False)
-        )
-        if not changed.rowcount:  # type: ignore[attr-defined]
+        changed = connection.execute(_TOUCH, {"key_user_id": user_id, "key_when": when})
+        if not changed.rowcount:
             raise ProfileNotFound(f"no profile for user {user_id!r}")
 
     @staticmethod
-    def _fresh(session: Session, user_id: str) -> Profile:
+    def _fresh(connection: Connection, user_id: str) -> Profile:
         """The user's snapshot as this transaction sees it now (after its own writes)."""
-        session.flush()
-        row = session.get(UserRow, user_id, populate_existing=True)
-        if row is None:
-            raise ProfileNotFound(f"no profile for user {user_id!r}")
-        return snapshot(row)
+        columns, scores = _load(connection, user_id)
+        return _profile(_fields(columns), scores)
 
     def _once(
         self,
@@ -420,10 +567,10 @@ class ProfileStore:
         writer changes the row under it (:class:`_Stale`).
 
         With a ``write_id`` the write is recorded in ``applied_writes`` in the same
-        transaction; a write whose id is there already fails on the key when it commits,
-        so it is rolled back whole (a replay costs one wasted transaction, a first run no
-        extra read): ``again`` answers with what the first run stored (``result`` of its
-        answer).
+        transaction; a write whose id is there already fails on the key (the insert
+        comes last), so it is rolled back whole (a replay costs one wasted transaction,
+        a first run no extra read): ``again`` answers with what the first run stored
+        (``result`` of its answer).
         """
         if write_id is not None and (not isinstance(write_id, str) or not 0 < len(write_id) <= 64):
             raise ProfileError(
@@ -434,13 +581,14 @@ class ProfileStore:
                 with self._session() as session:
                     answer = change(session)
                     if write_id is not None:
-                        session.add(
-                            AppliedWriteRow(
-                                write_id=write_id,
-                                user_id=user_id,
-                                result=result(answer),
-                                applied_at=datetime.now(UTC),
-                            )
+                        session.connection().execute(
+                            _INSERT_APPLIED,
+                            {
+                                "write_id": write_id,
+                                "user_id": user_id,
+                                "result": result(answer),
+                                "applied_at": datetime.now(UTC),
+                            },
                         )
                 self._count_write(write_id)
                 return answer
@@ -464,9 +612,9 @@ class ProfileStore:
         )
 
     def _applied(self, write_id: str) -> tuple[int | None] | None:
-        with self._session() as session:
-            row = session.get(AppliedWriteRow, write_id)
-            return None if row is None else (row.result,)
+        with self._read_connection() as connection:
+            row = connection.execute(_APPLIED_RESULT, {"key_write_id": write_id}).first()
+            return None if row is None else (row[0],)
 
     def _count_write(self, write_id: str | None) -> None:
         if write_id is None:
@@ -490,17 +638,50 @@ class ProfileStore:
             return int(gone.rowcount)  # type: ignore[attr-defined]
 
     def _field_write(
-        self, write_id: str | None, user_id: str, change: Callable[[UserRow], None]
+        self,
+        write_id: str | None,
+        user_id: str,
+        change: Callable[[_UserFields], None],
+        also: Callable[[Connection], None] | None = None,
     ) -> Profile:
-        """A read-modify-write of the user's row: ``change`` edits the row as read; the
-        ORM writes it only if its version is still the one read, else it is run again
-        on the fresh row."""
+        """A read-modify-write of the user's row: ``change`` edits the row as read (on
+        PostgreSQL locked, ``SELECT ... FOR UPDATE``, so the other robots' writes of
+        this user wait instead of failing their version check); the columns it changed
+        are written only if the row's version is still the one read, else it is run again
+        on the fresh row. ``also`` adds rows in the same transaction (an answer).
+
+        Nothing changed, nothing is written and the version stays (as the ORM did)."""
 
         def run(session: Session) -> Profile:
-            row = self._user_to_write(session, user_id)
+            connection = session.connection()
+            columns, scores = _load(connection, user_id, lock=self._dialect == "postgresql")
+            row = _fields(columns)
             change(row)
-            session.flush()
-            return snapshot(row)
+            changed = {
+                name: value
+                for name in _USER_COLUMNS
+                if (value := getattr(row, name)) != columns[name]
+            }
+            if session.dispatch.before_flush:
+                # Where the ORM flushed the row before: its listeners (the fleet tests
+                # put another robot's write there) still run at that point.
+                session.dispatch.before_flush(session, None, None)
+            if also is not None:
+                also(connection)
+            if changed:
+                row.version = columns["version"] + 1
+                written = connection.execute(
+                    _WRITE_FIELDS,
+                    {
+                        **changed,
+                        "version": row.version,
+                        "key_user_id": user_id,
+                        "key_version": columns["version"],
+                    },
+                )
+                if written.rowcount != 1:
+                    raise _Stale(f"changed by another writer: the profile of {user_id!r}")
+            return _profile(row, scores)
 
         return self._once(write_id, user_id, run, lambda _: self.get(user_id))
 
@@ -527,23 +708,17 @@ class ProfileStore:
             "initiative_offered": 0,
             "version": 1,
         }
-        with self._read() as session:  # the user is known: one SELECT, no transaction
-            row = session.get(UserRow, user_id)
-            if row is not None:
-                return snapshot(row)
+        # The user is known: one SELECT, no transaction.
+        with self._read_connection() as connection, suppress(ProfileNotFound):
+            return self._fresh(connection, user_id)
         try:
             with self._session() as session:
-                if self._dialect in ("sqlite", "postgresql"):
-                    module: Any = sqlite if self._dialect == "sqlite" else postgresql
-                    session.execute(
-                        module.insert(UserRow.__table__)
-                        .values(values)
-                        .on_conflict_do_nothing(index_elements=["user_id"])
-                    )
-                    return self._fresh(session, user_id)
-                session.add(UserRow(**values))
-                session.flush()
-                return self._fresh(session, user_id)
+                connection = session.connection()
+                if self._upserts is not None:
+                    connection.execute(self._upserts[1], values)
+                else:
+                    connection.execute(_INSERT_USER, values)
+                return self._fresh(connection, user_id)
         except _Conflict:
             pass
         # Another writer created it between our read and our insert.
@@ -572,8 +747,8 @@ class ProfileStore:
 
     def get(self, user_id: str) -> Profile:
         """The user's profile; ProfileNotFound if there is none."""
-        with self._read() as session:
-            return snapshot(self._user(session, user_id))
+        with self._read_connection() as connection:
+            return self._fresh(connection, user_id)
 
     def update(
         self,
@@ -595,7 +770,7 @@ class ProfileStore:
         _check_time("now", now)
         columns, attributes = validate_fields(fields)
 
-        def change(row: UserRow) -> None:
+        def change(row: _UserFields) -> None:
             for name, value in columns.items():
                 setattr(row, name, value)
             if attributes:
@@ -707,11 +882,13 @@ class ProfileStore:
         _check_time("now", now)
 
         def change(session: Session) -> int:
-            self._user(session, user_id)
-            row = SessionRow(user_id=user_id, started_at=now)
-            session.add(row)
-            session.flush()
-            return row.id
+            connection = session.connection()
+            self._check_user(connection, user_id)
+            inserted = connection.execute(_INSERT_SESSION, {"user_id": user_id, "started_at": now})
+            (session_id,) = inserted.inserted_primary_key or (None,)
+            if not isinstance(session_id, int):
+                raise StoreRefused(f"session of {user_id!r}: the database gave no id")
+            return session_id
 
         def again(result: int | None) -> int:
             if result is None:
@@ -728,13 +905,14 @@ class ProfileStore:
         _check_time("now", now)
         if metrics is not None:
             _check_metrics(metrics)
+        values: dict[str, Any] = {"ended_at": now, "key_id": session_id}
+        if metrics is not None:
+            values["metrics"] = dict(metrics)
         with self._session() as session:
-            row = session.get(SessionRow, session_id)
-            if row is None:
+            connection = session.connection()
+            if connection.execute(_SESSION_EXISTS, {"key_id": session_id}).first() is None:
                 raise ProfileError(f"session_id: no session {session_id!r}")
-            row.ended_at = now
-            if metrics is not None:
-                row.metrics = dict(metrics)
+            connection.execute(_END_SESSION, values)
 
     def sessions(self, since: datetime | None = None) -> list[dict[str, Any]]:
         """Every session (of every user) started at or after ``since``, oldest first:
@@ -782,26 +960,31 @@ class ProfileStore:
             raise ProfileError("ended: is before started")
 
         def change(session: Session) -> Profile:
-            self._touch(session, user_id, ended)
-            if session_id is not None and session.get(SessionRow, session_id) is None:
+            connection = session.connection()
+            self._touch(connection, user_id, ended)
+            if (
+                session_id is not None
+                and connection.execute(_SESSION_EXISTS, {"key_id": session_id}).first() is None
+            ):
                 raise ProfileError(f"session_id: no session {session_id!r}")
-            session.add(
-                ActivityRunRow(
-                    user_id=user_id,
-                    session_id=session_id,
-                    activity=activity,
-                    started_at=started,
-                    ended_at=ended,
-                    outcome=outcome,
-                    chosen_by=chosen_by,
-                    cancelled=cancelled,
-                )
+            connection.execute(
+                _INSERT_RUN,
+                {
+                    "user_id": user_id,
+                    "session_id": session_id,
+                    "activity": activity,
+                    "started_at": started,
+                    "ended_at": ended,
+                    "outcome": outcome,
+                    "chosen_by": chosen_by,
+                    "cancelled": cancelled,
+                },
             )
             if cancelled:
-                self._bump_score(session, user_id, activity, cancellations=1)
+                self._bump_score(connection, user_id, activity, cancellations=1)
             elif outcome in COMPLETED_OUTCOMES:
-                self._bump_score(session, user_id, activity, completions=1)
-            return self._fresh(session, user_id)
+                self._bump_score(connection, user_id, activity, completions=1)
+            return self._fresh(connection, user_id)
 
         return self._once(write_id, user_id, change, lambda _: self.get(user_id))
 
@@ -825,12 +1008,16 @@ class ProfileStore:
             raise ProfileError(f"score: must be a number between 0 and 1 (got {score!r:.60})")
 
         def change(session: Session) -> Profile:
-            self._touch(session, user_id, now)
-            session.add(FeedbackRow(user_id=user_id, activity=activity, score=float(score), at=now))
-            self._bump_score(
-                session, user_id, activity, feedback_sum=float(score), feedback_count=1
+            connection = session.connection()
+            self._touch(connection, user_id, now)
+            connection.execute(
+                _INSERT_FEEDBACK,
+                {"user_id": user_id, "activity": activity, "score": float(score), "at": now},
             )
-            return self._fresh(session, user_id)
+            self._bump_score(
+                connection, user_id, activity, feedback_sum=float(score), feedback_count=1
+            )
+            return self._fresh(connection, user_id)
 
         return self._once(write_id, user_id, change, lambda _: self.get(user_id))
 
@@ -854,13 +1041,7 @@ class ProfileStore:
         applied = bank.parse(question, answer) if question is not None else None
         columns, attributes = validate_fields(applied or {})
 
-        def change(session: Session) -> Profile:
-            row = self._user_to_write(session, user_id)
-            session.add(
-                AnswerRow(
-                    user_id=user_id, question_id=question_id, answer=answer, applied=applied, at=now
-                )
-            )
+        def change(row: _UserFields) -> None:
             for name, value in columns.items():
                 setattr(row, name, value)
             if attributes:
@@ -868,13 +1049,23 @@ class ProfileStore:
             if "robot_initiative_frequency" in columns:  # seeds the proactivity estimate
                 self._estimate_proactivity(row)
             row.updated_at = now
-            session.flush()
-            return snapshot(row)
 
-        return self._once(write_id, user_id, change, lambda _: self.get(user_id))
+        def log(connection: Connection) -> None:
+            connection.execute(
+                _INSERT_ANSWER,
+                {
+                    "user_id": user_id,
+                    "question_id": question_id,
+                    "answer": answer,
+                    "applied": applied,
+                    "at": now,
+                },
+            )
+
+        return self._field_write(write_id, user_id, change, also=log)
 
     @staticmethod
-    def _estimate_proactivity(row: UserRow) -> None:
+    def _estimate_proactivity(row: _UserFields) -> None:
         """Proactivity from the record of chances (:mod:`memory.proactivity`)."""
         level, confidence = proactivity.estimate(
             row.initiative_taken,
@@ -902,7 +1093,7 @@ class ProfileStore:
         _check_time("now", now)
         attribute = f"{channel}_failures"
 
-        def change(row: UserRow) -> None:
+        def change(row: _UserFields) -> None:
             if answered:
                 setattr(row, attribute, 0)
             else:
@@ -925,7 +1116,7 @@ class ProfileStore:
             )
         _check_time("now", now)
 
-        def change(row: UserRow) -> None:
+        def change(row: _UserFields) -> None:
             row.initiative_taken, row.initiative_offered = proactivity.forget(
                 row.initiative_taken + int(took_initiative), row.initiative_offered + 1
             )
