@@ -9,6 +9,10 @@
    The random ranking (no features) is the baseline.
 2. Profile load (``ProfileStore.get``) with 10,000 users stored in a SQLite file.
    Target: p99 <= 5 ms.
+3. Profile write (``write_ms_mean``, ``write_ms_p99``): the daemon's mix of writes, each
+   with a ``write_id`` (a session started and ended, an activity run, feedback, an
+   interaction, an initiative, a field update, an answer), 3 users, a SQLite file in
+   /dev/shm so that the figure is the code's, not the disk's fsync (issue 14).
 
     .venv/bin/python bench/bench_memory.py [--personas N] [--users N]
 """
@@ -21,6 +25,7 @@ import random
 import statistics
 import tempfile
 import time
+import uuid
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
@@ -172,17 +177,61 @@ def load_time(users: int, loads: int, seed: int) -> dict[str, Any]:
     }
 
 
+def write_time(rounds: int) -> dict[str, Any]:
+    times: list[float] = []
+
+    def timed(call: Any, *args: Any, **kwargs: Any) -> Any:
+        began = time.perf_counter()
+        answer = call(*args, **kwargs)
+        times.append((time.perf_counter() - began) * 1000)
+        return answer
+
+    folder = Path("/dev/shm") if Path("/dev/shm").is_dir() else None
+    with tempfile.TemporaryDirectory(dir=folder) as tmp:
+        store = ProfileStore(f"sqlite:///{Path(tmp) / 'writes.db'}")
+        users = ("ann", "bob", "cid")
+        for user_id in users:
+            store.get_or_create(user_id, START)
+        for index in range(rounds):
+            now, user_id = START + timedelta(minutes=index), users[index % 3]
+
+            def once() -> str:
+                return uuid.uuid4().hex
+
+            session_id = timed(store.start_session, user_id, now, write_id=once())
+            timed(
+                store.record_activity,
+                *(user_id, "quiz", now, now, "completed", "model", False, session_id),
+                write_id=once(),
+            )
+            timed(store.record_feedback, user_id, "quiz", 0.7, now, write_id=once())
+            timed(store.record_interaction, user_id, "voice", index % 2 == 0, now, write_id=once())
+            timed(store.record_initiative, user_id, index % 3 == 0, now, write_id=once())
+            timed(store.update, user_id, now, write_id=once(), volume=0.5, hobby=f"h{index % 5}")
+            timed(store.record_answer, user_id, "name", "Ann", now, write_id=once())
+            timed(store.end_session, session_id, now)
+        store.close()
+    times.sort()
+    return {
+        "writes": len(times),
+        "write_ms_mean": round(statistics.fmean(times), 3),
+        "write_ms_p99": round(times[int(len(times) * 0.99) - 1], 3),
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--personas", type=int, default=40)
     parser.add_argument("--users", type=int, default=10_000)
     parser.add_argument("--loads", type=int, default=2_000)
     parser.add_argument("--seed", type=int, default=99)
+    parser.add_argument("--write-rounds", type=int, default=300)
     args = parser.parse_args()
     began = time.perf_counter()
     result = {
         **learning(args.personas, args.seed),
         **load_time(args.users, args.loads, args.seed),
+        **write_time(args.write_rounds),
     }
     result["targets_met"] = result["tau_after_5_sessions"] >= 0.5 and result["load_ms_p99"] <= 5.0
     result["wall_s"] = round(time.perf_counter() - began, 1)
