@@ -458,6 +458,10 @@ class ProfileStore:
         self._count_lock = threading.Lock()
         self._since_prune = 0
         self.retries = 0
+        self.after_field_read: Callable[[], None] | None = None
+        """Called inside a field write between reading the user's row and writing it: a
+        seam where the fleet's tests put another robot's write (the race the version
+        check and, on PostgreSQL, the row lock resolve). None in use."""
         """Field writes retried because another writer changed the row first."""
 
     # ------------------------------------------------------------------ plumbing
@@ -662,10 +666,8 @@ class ProfileStore:
                 for name in _USER_COLUMNS
                 if (value := getattr(row, name)) != columns[name]
             }
-            if session.dispatch.before_flush:
-                # Where the ORM flushed the row before: its listeners (the fleet tests
-                # put another robot's write there) still run at that point.
-                session.dispatch.before_flush(session, None, None)
+            if self.after_field_read is not None:
+                self.after_field_read()
             if also is not None:
                 also(connection)
             if changed:

@@ -21,7 +21,6 @@ from typing import Any
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from sqlalchemy import event
 
 from memory import Profile, ProfileStore, proactivity
 from memory.store import FAILURES_TO_SWITCH
@@ -280,11 +279,11 @@ def test_a_field_write_on_a_stale_read_is_retried_on_the_fresh_row(tmp_path: Pat
                 b.update("ann", NOW, name="Ann", hobby="music")
                 b.record_interaction("ann", "voice", False, NOW)
 
-        event.listen(a._sessions, "before_flush", b_writes_first)
+        a.after_field_read = b_writes_first
         try:
             profile = a.update("ann", NOW, favorite_room="garden", pet="cat")
         finally:
-            event.remove(a._sessions, "before_flush", b_writes_first)
+            a.after_field_read = None
         assert interleaved == ["b"] and a.retries == 1
         assert (profile.name, profile.favorite_room, profile.voice_failures) == (
             "Ann",
@@ -312,11 +311,11 @@ def test_on_postgres_a_field_write_holds_the_row_and_the_other_robot_waits(pg_ur
                 threads.append(thread)
                 thread.start()
 
-        event.listen(a._sessions, "before_flush", b_writes_meanwhile)
+        a.after_field_read = b_writes_meanwhile
         try:
             profile = a.update("ann", NOW, favorite_room="garden", pet="cat")
         finally:
-            event.remove(a._sessions, "before_flush", b_writes_meanwhile)
+            a.after_field_read = None
         threads[0].join(30)
         (after,) = results
         assert a.retries == b.retries == 0
