@@ -66,6 +66,7 @@ from activities.synonyms import match_activity
 from activities.template import as_text, has_placeholder, is_single_placeholder, render
 from dms.kernel.activity_names import USER_SELECTABLE
 from dms.kernel.expression import CommandHandle, CommandStatus, Priority
+from dms.kernel.frames import Located
 from dms.kernel.gaze import AttentionSettings, aim, point, turn_toward
 from dms.kernel.messages import Channel, ScreenChoice, Speech, Touch
 from dms.kernel.words import digits
@@ -492,6 +493,8 @@ TOWARD_DEAD_BAND_RAD = 0.06
 class Gesture(Block[GestureParams]):
     DOC = "Move: nod, wave, bow, dance_step, ... (durations are the robot's), toward a frame."
     PARAMS = GestureParams
+    turn: Aim | None = None
+    """The hip's turn toward ``toward``, while it may still run."""
 
     def begin(self, now: datetime) -> None:
         self.handles = []
@@ -515,14 +518,15 @@ class Gesture(Block[GestureParams]):
         hip = turn_toward(located)["hip"]
         if self.hip is not None and abs(hip - self.hip) < TOWARD_DEAD_BAND_RAD:
             return
-        if self.turn is not None and not self.turn.handle.finished:
-            self.rt.ctx.expression.interrupt(self.turn.handle, now)
+        if self.turn is not None:
+            self.turn.stop(self.rt.ctx, now)
         self.hip = hip
         self.turn = send_aim(self.rt.ctx, "turn_to", {"hip": hip}, frame, located, now)
 
     def withdraw(self, now: datetime) -> None:
         super().withdraw(now)
-        stop_aim(self, getattr(self, "turn", None), now)
+        if self.turn is not None:
+            self.turn.stop(self.rt.ctx, now)
 
     def update(self, now: datetime) -> Status:
         if self.args.toward is not None:
@@ -1014,88 +1018,81 @@ def _norm(value: Any) -> str:
 # ---------------------------------------------------------------- gaze and pointing
 
 
-class LookAtParams(BlockParams):
+class AimParams(BlockParams):
     frame: str = Field(
-        USER, description="What to look at: user (whoever is in front), face:<id>, object:<name>."
+        USER, description="What to aim at: user (whoever is in front), face:<id>, object:<name>."
     )
     last_known: bool = Field(
         True,
-        description="Not seen now: look where it was last seen (seed 002's task frames); "
+        description="Not seen now: aim where it was last seen (seed 002's task frames); "
         "false: end with lost.",
     )
 
 
-class LookAt(Block[LookAtParams]):
-    DOC = "Turn the head (the hip if needed) toward a frame; done when it looks there."
-    PARAMS = LookAtParams
+AP = TypeVar("AP", bound=AimParams)
+
+
+class Aiming(Block[AP]):
+    """Turns joints toward a frame once: ``lost`` when there is nothing to aim at (never
+    seen, or not seen now and ``last_known`` false), else ``done`` once the aim is over
+    (done, failed or ignored: the aim channel is best effort)."""
+
     OUTCOMES = ("done", "lost")
+    ACTION: ClassVar[str] = ""
+    aim: Aim | None = None
+
+    def targets(self, located: Located) -> dict[str, float]:
+        """The joint angles that aim at ``located`` (in the base frame)."""
+        raise NotImplementedError
 
     def begin(self, now: datetime) -> None:
         self.handles = []
-        self.aim: Aim | None = None
-        ctx = self.rt.ctx
-        located = locate(ctx, self.args.frame, now)
+        self.aim = None
+        located = locate(self.rt.ctx, self.args.frame, now)
         if located is None or (not located.live and not self.args.last_known):
             return
-        targets = aim(located, ctx.joints.get("hip", 0.0))
-        self.aim = send_aim(ctx, "look_at", targets, self.args.frame, located, now)
+        targets = self.targets(located)
+        self.aim = send_aim(self.rt.ctx, self.ACTION, targets, self.args.frame, located, now)
 
     def update(self, now: datetime) -> Status:
-        return aimed(self, self.aim, now)
+        if self.aim is None:
+            return self.finish("lost")
+        if not self.aim.over(now):
+            return Status.RUNNING
+        if self.aim.handle.status is CommandStatus.SENT:  # never acknowledged: free the lane
+            self.aim.stop(self.rt.ctx, now)
+        return self.finish("done")
 
     def withdraw(self, now: datetime) -> None:
         super().withdraw(now)
-        stop_aim(self, getattr(self, "aim", None), now)
+        if self.aim is not None:
+            self.aim.stop(self.rt.ctx, now)
 
 
-class PointAtParams(BlockParams):
+class LookAt(Aiming[AimParams]):
+    DOC = "Turn the head (the hip if needed) toward a frame; done when it looks there."
+    PARAMS = AimParams
+    ACTION = "look_at"
+
+    def targets(self, located: Located) -> dict[str, float]:
+        return aim(located, self.rt.ctx.joints.get("hip", 0.0))
+
+
+class PointAtParams(AimParams):
     frame: str = Field(description="What to point at: object:<name>, user, face:<id>.")
     arm: Literal["left", "right"] | None = Field(
         None, description="The arm; by default the one on the frame's side."
     )
-    last_known: bool = Field(
-        True, description="Not seen now: point where it was last seen; false: end with lost."
-    )
 
 
-class PointAt(Block[PointAtParams]):
+class PointAt(Aiming[PointAtParams]):
     DOC = "Point an arm (the hip turning) at a frame; done when it points there."
     PARAMS = PointAtParams
-    OUTCOMES = ("done", "lost")
+    ACTION = "point_at"
 
-    def begin(self, now: datetime) -> None:
-        self.handles = []
-        self.aim: Aim | None = None
-        located = locate(self.rt.ctx, self.args.frame, now)
-        if located is None or (not located.live and not self.args.last_known):
-            return
+    def targets(self, located: Located) -> dict[str, float]:
         side = self.args.arm or ("left" if located.position[1] > 0 else "right")
-        targets = point(located, f"{side}_arm")
-        self.aim = send_aim(self.rt.ctx, "point_at", targets, self.args.frame, located, now)
-
-    def update(self, now: datetime) -> Status:
-        return aimed(self, self.aim, now)
-
-    def withdraw(self, now: datetime) -> None:
-        super().withdraw(now)
-        stop_aim(self, getattr(self, "aim", None), now)
-
-
-def aimed(block: Block[Any], sent: Aim | None, now: datetime) -> Status:
-    """``lost`` when there was nothing to aim at; ``done`` once the aim is over (done,
-    failed, ignored: the aim channel is best effort)."""
-    if sent is None:
-        return block.finish("lost")
-    if sent.over(now):
-        if sent.handle.status is CommandStatus.SENT:  # never acknowledged: free the lane
-            block.rt.ctx.expression.interrupt(sent.handle, now)
-        return block.finish("done")
-    return Status.RUNNING
-
-
-def stop_aim(block: Block[Any], sent: Aim | None, now: datetime) -> None:
-    if sent is not None and not sent.handle.finished:
-        block.rt.ctx.expression.interrupt(sent.handle, now)
+        return point(located, f"{side}_arm")
 
 
 class AttendParams(BlockParams):
@@ -1121,6 +1118,7 @@ class AttendBlockParams(AttendParams):
 class Attend(Block[AttendBlockParams]):
     DOC = "Keep the gaze on a frame (the user's face) while other states run beside it."
     PARAMS = AttendBlockParams
+    keeper: GazeKeeper | None = None
 
     def begin(self, now: datetime) -> None:
         self.handles = []
@@ -1128,22 +1126,23 @@ class Attend(Block[AttendBlockParams]):
         self.countdown = Countdown(now, self.args.seconds)
 
     def on_pause(self, now: datetime) -> None:
-        self.keeper.withdraw(now)
+        self.withdraw(now)
         self.countdown.pause(now)
 
     def on_resume(self, now: datetime) -> None:
+        assert self.keeper is not None  # entered before it could pause
         self.keeper.restart()
         self.countdown.resume(now)
 
     def withdraw(self, now: datetime) -> None:
         super().withdraw(now)
-        keeper = getattr(self, "keeper", None)
-        if keeper is not None:
-            keeper.withdraw(now)
+        if self.keeper is not None:
+            self.keeper.withdraw(now)
 
     def update(self, now: datetime) -> Status:
         if self.countdown.over(now):
             return self.finish("done")
+        assert self.keeper is not None  # made on entry
         self.keeper.update(now)
         return Status.RUNNING
 

@@ -51,16 +51,21 @@ def turn_seconds(joints: Mapping[str, float], targets: Mapping[str, float]) -> f
     return max(seconds, default=0.0)
 
 
-def aim_args(targets: Mapping[str, float], frame: str, located: Located) -> dict[str, Any]:
+def aim_args(
+    targets: Mapping[str, float], frame: str | None, located: Located | None
+) -> dict[str, Any]:
     """An ``aim`` command's arguments: the joint targets (what a robot executes), and the
-    frame and its position (for a robot that servos on its own perception)."""
-    x, y, z = located.position
-    return {
+    frame and its position (for a robot that servos on its own perception); no frame:
+    back to neutral, nothing to name."""
+    args: dict[str, Any] = {
         "joints": {name: round(angle, 4) for name, angle in targets.items()},
-        "frame": frame,
-        "position": {"x": round(x, 4), "y": round(y, 4), "z": round(z, 4)},
-        "live": located.live,
+        "frame": frame if located is not None else None,
     }
+    if frame is not None and located is not None:
+        x, y, z = located.position
+        args["position"] = {"x": round(x, 4), "y": round(y, 4), "z": round(z, 4)}
+        args["live"] = located.live
+    return args
 
 
 @dataclass
@@ -73,13 +78,18 @@ class Aim:
     def over(self, now: datetime) -> bool:
         return self.handle.finished or now >= self.until
 
+    def stop(self, ctx: ActivityContext, now: datetime) -> None:
+        """Withdraw it if it still runs (its state stopped, or a newer aim replaces it)."""
+        if not self.handle.finished:
+            ctx.expression.interrupt(self.handle, now)
+
 
 def send_aim(
     ctx: ActivityContext,
     action: str,
     targets: Mapping[str, float],
-    frame: str,
-    located: Located,
+    frame: str | None,
+    located: Located | None,
     now: datetime,
 ) -> Aim:
     """Send one ``aim`` command for this activity; how long to wait for it at most."""
@@ -98,7 +108,7 @@ class GazeKeeper:
         self.frame = frame
         self.settings = settings
         self.attention = Attention(frame, settings)
-        self.current: CommandHandle | None = None
+        self.current: Aim | None = None
 
     def update(self, now: datetime) -> None:
         """Once a tick: send a new gaze when the frame moved enough (or went stale)."""
@@ -109,19 +119,15 @@ class GazeKeeper:
         if targets is None:
             return
         self.withdraw(now)
-        located = locate(self.ctx, self.frame, now)
-        if located is None or not located.live:  # back to neutral: no target to name
-            args: dict[str, Any] = {"joints": {k: round(v, 4) for k, v in targets.items()}}
-            self.current = self.ctx.expression.request(
-                self.ctx.source, "aim", "look_at", {**args, "frame": None}, now
-            )
-            return
-        self.current = send_aim(self.ctx, "look_at", targets, self.frame, located, now).handle
+        located = self.attention.located
+        if located is not None and not located.live:
+            located = None  # back to neutral: no target to name
+        self.current = send_aim(self.ctx, "look_at", targets, self.frame, located, now)
 
     def withdraw(self, now: datetime) -> None:
         """Stop the gaze command still running (paused, stopped, or a newer gaze)."""
-        if self.current is not None and not self.current.finished:
-            self.ctx.expression.interrupt(self.current, now)
+        if self.current is not None:
+            self.current.stop(self.ctx, now)
         self.current = None
 
     def restart(self) -> None:

@@ -177,7 +177,13 @@ class ZenohBus:
                 on_input(key, sample.payload.to_bytes())
 
         for key in keys.INPUT_KEYS:
-            self._entities.append(session.declare_subscriber(self._key(key), on_sample))
+            # Only other processes' messages are inputs: the joints the daemon publishes for
+            # its in-process robot are not heard back as if a robot had sent them.
+            self._entities.append(
+                session.declare_subscriber(
+                    self._key(key), on_sample, allowed_origin=zenoh.Locality.REMOTE
+                )
+            )
 
         alive_prefix = self._key(keys.ALIVE_PREFIX)
 

@@ -83,6 +83,8 @@ class Attention:
         self._sent: dict[str, float] | None = None
         self._sent_at: datetime | None = None
         self.shifts = 0
+        self.located: Located | None = None
+        """Where the frame was at the last update that looked it up (None: unknown)."""
         self._settled: tuple[int, float, datetime] | None = None
         """(the store's moves, the hip, live until): the last full update found nothing
         to send for a live frame; while these hold, nothing can have changed."""
@@ -104,6 +106,7 @@ class Attention:
             located: Located | None = frames.lookup(self.frame, now)
         except UnknownFrame:
             located = None
+        self.located = located
         if located is None or (not located.live and located.age_s > self.settings.neutral_after_s):
             wanted = {name: NEUTRAL[name] for name in GAZE_JOINTS}
         elif not located.live:
