@@ -186,9 +186,9 @@ class DaemonProcess:
 
 @contextmanager
 def running_daemon(
-    tmp: Path, extra_config: str = ""
+    tmp: Path, extra_config: str = "", extra_args: tuple[str, ...] = ()
 ) -> Iterator[tuple[DaemonProcess, zenoh.Session]]:
-    daemon = DaemonProcess(tmp, extra_config=extra_config)
+    daemon = DaemonProcess(tmp, extra_config=extra_config, extra_args=extra_args)
     session = client_session(daemon.port)
     try:
         daemon.start(session)

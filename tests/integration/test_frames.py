@@ -15,8 +15,6 @@ from __future__ import annotations
 import itertools
 import math
 import threading
-from collections.abc import Iterator
-from contextlib import contextmanager
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -30,9 +28,8 @@ from dms.kernel.clock import RealClock
 from sim.robot_node import RobotNode
 from tests.integration.harness import (
     Collector,
-    DaemonProcess,
-    client_session,
     put,
+    running_daemon,
     wait_token,
 )
 
@@ -72,22 +69,13 @@ def _time(message: dict[str, Any]) -> float:
     return datetime.fromisoformat(message["time"].replace("Z", "+00:00")).timestamp()
 
 
-@contextmanager
-def _daemon(tmp_path: Path, *args: str) -> Iterator[tuple[DaemonProcess, zenoh.Session]]:
-    daemon = DaemonProcess(tmp_path, extra_config="[frames]\nface_live_s = 1.0\n", extra_args=args)
-    session = client_session(daemon.port)
-    try:
-        yield daemon, session
-    finally:
-        daemon.kill()
-        session.close()
+FACE_LIVE_1S = "[frames]\nface_live_s = 1.0\n"
 
 
 def test_the_head_follows_a_face_from_left_to_right_at_the_necks_speed(tmp_path: Path) -> None:
-    with _daemon(tmp_path) as (daemon, session):
+    with running_daemon(tmp_path, FACE_LIVE_1S) as (daemon, session):
         joints = Collector(session, "robots/mini/robot/joints")
         commands = Collector(session, "robots/mini/robot/command")
-        daemon.start(session)
         with Perception(session) as perception:
             perception.face = {"x": X, "y": LEFT, "z": Z}
             put(session, "request", {"action": "start", "activity": "quiz", "by": "test"})
@@ -135,14 +123,13 @@ def test_the_head_follows_a_face_from_left_to_right_at_the_necks_speed(tmp_path:
 
 
 def test_the_simulated_mini_over_zenoh_turns_and_reports_its_joints(tmp_path: Path) -> None:
-    with _daemon(tmp_path, "--robot", "zenoh") as (daemon, session):
+    with running_daemon(tmp_path, FACE_LIVE_1S, ("--robot", "zenoh")) as (daemon, session):
         robot_client = ZenohClient("mini", make_config(connect=[f"tcp/127.0.0.1:{daemon.port}"]))
         node = RobotNode(robot_client, RealClock(), seed=2)
         thread = threading.Thread(target=node.run, daemon=True)
         joints = Collector(session, "robots/mini/robot/joints")
         states = Collector(session, "robots/mini/dms/state")
         try:
-            daemon.start(session)
             thread.start()
             wait_token(session, "robots/mini/alive/robot/joints", present=True, timeout=10.0)
             with Perception(session) as perception:
@@ -158,5 +145,6 @@ def test_the_simulated_mini_over_zenoh_turns_and_reports_its_joints(tmp_path: Pa
             node.stopped.set()
             thread.join(5.0)
             robot_client.close()
-        assert node.joint_states > 10
+        # every joint state seen came from the robot's process: the daemon publishes none
+        assert 0 < len(joints.messages) <= node.joint_states
         assert daemon.terminate() == 0
