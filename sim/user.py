@@ -110,13 +110,10 @@ class SimulatedUser:
         self.seat: Seat | None = None
         """Where the face is; made when the user arrives (its draws are its own)."""
         self._perceived: (
-            tuple[tuple[str, bool, float, Position | None] | None, UserPerception] | None
-        ) = None
-        """The last perception and what it was made of: sent again while that holds."""
-        self._last_perceived: (
             tuple[tuple[bool, bool, str | None, Position | None], UserPerception] | None
         ) = None
-        """What the last call saw (presence, readiness, activity, face) and its answer."""
+        """The last perception and what it was made of (presence, readiness, activity,
+        face): the same frozen message again while that holds, not one built every tick."""
         self._question: _Question | None = None
         self._queue: list[_Pending] = []
         self._order = itertools.count()
@@ -158,31 +155,22 @@ class SimulatedUser:
         if self.present and self.seat is not None and now is not None:
             face = self.seat.face(now)
         state = (self.present, self.ready, self.activity, face)
-        last = self._last_perceived
-        if last is not None and last[0] == state:
-            return last[1]  # most ticks: nothing changed (the seat's position is one object)
-        key: tuple[str, bool, float, Position | None] | None = None
-        if self.present:
-            engagement = self.persona.liking(self.activity) if self.activity else 0.7
-            key = (self.user_id, self.ready, round(engagement, 2), face)
-        if self._perceived is not None and self._perceived[0] == key:
-            self._last_perceived = (state, self._perceived[1])
-            return self._perceived[1]  # a frozen message: built once, not every tick
-        if key is None:
+        if self._perceived is not None and self._perceived[0] == state:
+            return self._perceived[1]
+        if not self.present:
             message = UserPerception(present=False, user_id=None, ready=False, engagement=None)
         else:
-            user_id, ready, engagement, face = key
+            engagement = self.persona.liking(self.activity) if self.activity else 0.7
             message = UserPerception(
                 present=True,
-                user_id=user_id,
-                ready=ready,
-                engagement=engagement,
+                user_id=self.user_id,
+                ready=self.ready,
+                engagement=round(engagement, 2),
                 face=None
                 if face is None
                 else Pose(position=Vector3(x=face[0], y=face[1], z=face[2])),
             )
-        self._perceived = (key, message)
-        self._last_perceived = (state, message)
+        self._perceived = (state, message)
         return message
 
     # ------------------------------------------------------------ the queue
