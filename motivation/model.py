@@ -328,6 +328,17 @@ class MotivationModel:
         reader that needs only it every tick."""
         return round3(self._wellbeing(drives))
 
+    def snapshot_wellbeings(self, drives: FloatArray) -> list[float]:
+        """:meth:`snapshot_wellbeing` of each row of ``drives`` (one state's drives a row),
+        the same floats: for a reader of every tick that takes them in batches."""
+        if self._omega_total == 0:
+            return [100.0] * len(drives)
+        weighted = np.zeros(len(drives))
+        for i, weight in enumerate(self._omega):  # the order of ``_wellbeing``'s sum
+            weighted = weighted + weight * drives[:, i]
+        values = np.minimum(100.0, np.maximum(0.0, 100.0 - weighted / self._omega_total))
+        return [round3(value) for value in values.tolist()]
+
     def snapshot(self, state: MotivationState) -> dict[str, object]:
         """The ``motivation`` field of DmsState."""
         drives = state.drives.tolist()

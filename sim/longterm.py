@@ -19,7 +19,6 @@ activity is seen less often. ``ticks`` in the JSON counts the controller ticks r
 from __future__ import annotations
 
 import gc
-import math
 import random
 import resource
 import sys
@@ -32,8 +31,11 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from dms.config import Settings
 from dms.kernel.messages import RobotCommand
+from motivation.dynamics import FloatArray
 from motivation.model import MotivationModel, round3
 from sim.persona import WEEKDAYS, Persona, load_persona, shipped_personas
 from sim.study import DecisionRow, SessionMetrics, SessionObserver, command_handle
@@ -134,8 +136,14 @@ class _Tracker:
     (a pydantic model, a sixth of a tick): the snapshot's numbers are those of the state
     rounded to three places, and rounding keeps the order, so the largest rounded drive
     is the rounded largest one (``drives_max``), and the wellbeing is rounded the same
-    way (:meth:`MotivationModel.snapshot_wellbeing`). Samples take the snapshot itself.
+    way (:meth:`MotivationModel.snapshot_wellbeings`). Samples take the snapshot itself.
+
+    A tick only notes its time and drives; they are summed in batches of
+    :data:`BATCH_TICKS` (numpy over the batch, the same floats as tick by tick), and an
+    activity's time is accounted when it ends: the tracker was a tenth of a long run.
     """
+
+    BATCH_TICKS = 4096
 
     def __init__(self, start: datetime, model: MotivationModel) -> None:
         self.start = start
@@ -144,50 +152,47 @@ class _Tracker:
         self.last_activity: str | None = None
         self.activity_seconds: dict[str, float] = defaultdict(float)
         self.by_hour: dict[int, dict[str, float]] = {h: defaultdict(float) for h in range(24)}
-        self._drives_max: list[float] = []
+        self._drives_max: FloatArray | None = None
         """The largest value of each drive (the model's order), not rounded yet."""
-        self.wellbeing_area = 0.0
-        self.last_wellbeing: float | None = None
+        self._wellbeing_area = 0.0
+        self._last_wellbeing: float | None = None
+        self._summed_t: float | None = None
+        self._times: list[float] = []
+        self._drives: list[FloatArray | None] = []
+        """Each tick's time and drives (None before the first step), not summed yet."""
         self.samples: list[tuple[float, dict[str, float], float]] = []
         self.next_sample = 0.0
         self.spans: list[tuple[str, float, float]] = []
         self._span_start = 0.0
         self._base = start.hour * 3600 + start.minute * 60 + start.second
-        self._hour: tuple[float, float, dict[str, float]] = (math.nan, 0.0, {})
-        """The hour of the last interval accounted: (its index, its end, its seconds)."""
 
     @property
     def drives_max(self) -> dict[str, float]:
         """The largest value of each drive, as the snapshots give them (rounded)."""
-        if not self._drives_max:  # no step yet: the snapshot had no drives
+        self._sum()
+        if self._drives_max is None:  # no step yet: the snapshot had no drives
             return {}
         names = self.model.names
-        return {name: round3(value) for name, value in zip(names, self._drives_max, strict=True)}
+        highest = self._drives_max.tolist()
+        return {name: round3(value) for name, value in zip(names, highest, strict=True)}
+
+    @property
+    def wellbeing_area(self) -> float:
+        """The wellbeing integrated over the time ticked (each tick's until the next)."""
+        self._sum()
+        return self._wellbeing_area
 
     def on_tick(self, t: float, record: TickRecord) -> None:
-        if self.last_t is not None:
-            dt = t - self.last_t
-            if self.last_activity is not None and dt > 0:
-                self._account(self.last_activity, self.last_t, t)
-            if self.last_wellbeing is not None:
-                self.wellbeing_area += self.last_wellbeing * dt
         state = record.motivation_state
-        if state is None:  # before the first step: what the snapshot says then
-            self.last_wellbeing = 100.0
-        else:
-            drives = state.drives.tolist()
-            highest = self._drives_max
-            if not highest:
-                highest.extend(drives)
-            else:
-                for i, value in enumerate(drives):
-                    if value > highest[i]:
-                        highest[i] = value
-            self.last_wellbeing = self.model.snapshot_wellbeing(drives)
+        self._times.append(t)
+        self._drives.append(None if state is None else state.drives)
+        if len(self._times) >= self.BATCH_TICKS:
+            self._sum()
         activity = record.activity
         if activity != self.last_activity:
             if self.last_activity is not None:
                 self.spans.append((self.last_activity, self._span_start, t))
+                self._account(self.last_activity, self._span_start, t)
             self._span_start = t
         self.last_activity = activity
         self.last_t = t
@@ -196,28 +201,49 @@ class _Tracker:
             self.samples.append((t, dict(motivation.drives), motivation.wellbeing))
             self.next_sample = t + SAMPLE_EVERY_S
 
-    def _account(self, name: str, t0: float, t1: float) -> None:
-        self.activity_seconds[name] += t1 - t0
-        # Split the interval at hour boundaries so that "by hour" is exact.
-        base = self._base
-        index, boundary, seconds = self._hour
-        if (base + t0) // 3600 == index and t1 <= boundary:
-            seconds[name] += t1 - t0  # a tick inside the hour of the last one: no split
+    def _sum(self) -> None:
+        """Fold the ticks noted since the last call into the area and the maxima."""
+        times, noted = self._times, self._drives
+        if not times:
             return
+        stepped = [drives for drives in noted if drives is not None]
+        wellbeings: list[float] = []
+        if stepped:
+            rows = np.array(stepped)
+            highest = rows.max(axis=0)
+            if self._drives_max is not None:
+                highest = np.maximum(highest, self._drives_max)
+            self._drives_max = highest
+            wellbeings = self.model.snapshot_wellbeings(rows)
+        # before the first step the snapshot says 100 (no drives); steps come after it
+        wellbeings = [100.0] * (len(noted) - len(stepped)) + wellbeings
+        area, last = self._wellbeing_area, self._last_wellbeing
+        previous = self._summed_t if last is not None else None
+        for t, wellbeing in zip(times, wellbeings, strict=True):
+            if last is not None and previous is not None:
+                area += last * (t - previous)
+            last, previous = wellbeing, t
+        self._wellbeing_area, self._last_wellbeing, self._summed_t = area, last, previous
+        times.clear()
+        noted.clear()
+
+    def _account(self, name: str, t0: float, t1: float) -> None:
+        """Add ``name``'s run from ``t0`` to ``t1``, split at the hours of the day."""
+        self.activity_seconds[name] += t1 - t0
+        base = self._base
         t = t0
         while t < t1:
             clock = base + t
-            index = clock // 3600
-            boundary = (index + 1) * 3600 - base
-            seconds = self.by_hour[int(index) % 24]
+            boundary = (clock // 3600 + 1) * 3600 - base
             end = min(t1, boundary)
-            seconds[name] += end - t
-            self._hour = (index, boundary, seconds)
+            self.by_hour[int(clock // 3600) % 24][name] += end - t
             t = end
 
     def finish(self, t: float) -> None:
+        self._sum()
         if self.last_activity is not None:
             self.spans.append((self.last_activity, self._span_start, t))
+            self._account(self.last_activity, self._span_start, t)
 
 
 @contextmanager
