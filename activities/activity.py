@@ -9,7 +9,7 @@ from datetime import datetime, timedelta
 from enum import Enum
 from typing import Any
 
-from activities.engine import Event, Node, Runtime, Status
+from activities.engine import Event, Node, Runtime, Status, Wake
 from activities.gaze import GazeKeeper
 
 log = logging.getLogger(__name__)
@@ -59,6 +59,11 @@ class Activity:
         self.started_at: datetime | None = None
         self.ticks = 0
         self._stop_by: datetime | None = None
+        self._asleep: tuple[Wake, int] | None = None
+        """What the machine waits for and the ``runtime.epoch`` then: while it holds, a
+        tick of the machine would do nothing and is skipped (issue 14)."""
+        self.skipped = 0
+        """Ticks skipped while the machine slept (for the tests and benchmarks)."""
 
     @property
     def result(self) -> ActivityResult:
@@ -98,11 +103,22 @@ class Activity:
             self.cancel(now)
             return self.status
         self.ticks += 1
-        try:
-            status = self.root.tick(now)
-        except Exception as error:  # a broken block fails its activity, never the daemon
-            self._contain(now, error)
-            return self.status
+        asleep = self._asleep
+        if asleep is not None and asleep[1] == self.runtime.epoch and asleep[0].holds(now):
+            self.skipped += 1
+            status = Status.RUNNING
+        else:
+            self._asleep = None
+            epoch = self.runtime.epoch
+            try:
+                status = self.root.tick(now)
+                if status is Status.RUNNING and self.runtime.epoch == epoch:
+                    wake = self.root.wake(now)  # once a quiet spell, not every tick
+                    if wake is not None:
+                        self._asleep = (wake, epoch)
+            except Exception as error:  # a broken block fails its activity, never the daemon
+                self._contain(now, error)
+                return self.status
         if self.gaze is not None and status is Status.RUNNING:
             self.gaze.update(now)
         if status is Status.DONE:
@@ -114,6 +130,7 @@ class Activity:
 
     def pause(self, now: datetime) -> None:
         """Freeze at any depth; commands in flight are withdrawn (history keeps the state)."""
+        self._asleep = None  # something reaches the machine: it ticks again
         if self.status is ActivityStatus.RUNNING:
             self.root.pause(now)
             if self.gaze is not None:
@@ -122,6 +139,7 @@ class Activity:
 
     def resume(self, now: datetime) -> None:
         """Re-enter the interrupted states; their blocks restart what they were doing."""
+        self._asleep = None  # something reaches the machine: it ticks again
         if self.status is ActivityStatus.PAUSED:
             self.status = ActivityStatus.RUNNING
             if self.gaze is not None:
@@ -146,12 +164,14 @@ class Activity:
             return ActivityStatus.CANCELLED if self.status is None else self.status
         if self._stop_by is not None:  # asked already: one request
             return self.status
+        self._asleep = None
         self._stop_by = now + timedelta(seconds=limit_s)
         self.root.preempt()
         return self.tick(now)
 
     def cancel(self, now: datetime) -> None:
         """Stop from outside at once: every active state, at every depth, no cleanup."""
+        self._asleep = None  # something reaches the machine: it ticks again
         if self.status is None:
             self.status = ActivityStatus.CANCELLED
             self._result = ActivityResult("cancelled", None, None, {})
@@ -163,6 +183,7 @@ class Activity:
 
     def deliver(self, event: Event) -> bool:
         """Offer a perception event; True if a state took it (an answer, a guard)."""
+        self._asleep = None  # something reaches the machine: it ticks again
         if self.status is not ActivityStatus.RUNNING:
             return False
         return self.root.deliver(event)

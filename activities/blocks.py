@@ -59,7 +59,7 @@ from pydantic import (
     ValidationInfo,
 )
 
-from activities.engine import Event, Io, Node, Runtime, Status
+from activities.engine import Event, Io, Node, Runtime, Status, Wake
 from activities.errors import BehaviorError
 from activities.gaze import USER, Aim, GazeKeeper, locate, send_aim
 from activities.synonyms import match_activity
@@ -377,6 +377,19 @@ class Block(Node, Generic[P]):
             return self.finish(self.OUTCOMES[0])
         return Status.RUNNING
 
+    def wake(self, now: datetime) -> Wake | None:
+        """This ``update`` reads only its commands' statuses: it waits for them to move.
+        A block with an ``update`` of its own sleeps only if it says so (its ``wake``)."""
+        if type(self).update is not Block.update:
+            return None
+        return self.waiting_on_commands()
+
+    def waiting_on_commands(self) -> Wake | None:
+        """Sleep until a command's status moves (unless a preemption waits)."""
+        if self._preempt_requested:
+            return None
+        return Wake(None, [(handle, handle.status) for handle in self.handles])
+
 
 class Countdown:
     """A deadline that survives a pause: the time left is kept while paused and runs
@@ -533,6 +546,10 @@ class Gesture(Block[GestureParams]):
             self._retarget(now)
         return super().update(now)
 
+    def wake(self, now: datetime) -> Wake | None:
+        """Without ``toward``, this is Block's ``update``; with it, it follows a frame."""
+        return self.waiting_on_commands() if self.args.toward is None else None
+
 
 class LedsParams(BlockParams):
     color: str = Field(description="A colour name or #rrggbb.")
@@ -589,6 +606,11 @@ class Wait(Block[WaitParams]):
         if self.countdown.over(now):
             return self.finish("done")
         return Status.RUNNING
+
+    def wake(self, now: datetime) -> Wake | None:
+        if self._preempt_requested:
+            return None
+        return Wake(self.countdown.deadline)  # ``over`` is ``now >= deadline``
 
 
 class WaitEventParams(BlockParams):

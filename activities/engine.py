@@ -23,7 +23,11 @@ status: ``INVALID`` means it was stopped from outside). On top come SMACH's sema
   (``INVALID``) and itself ends ``preempted``, so the request climbs. ``stop``
   clears a request that was not serviced;
 - pause is history: :meth:`Node.pause` freezes the active states at every depth,
-  :meth:`Node.resume` re-enters them and their blocks restart what they were saying.
+  :meth:`Node.resume` re-enters them and their blocks restart what they were saying;
+- a machine that waits sleeps: after a tick that changed no status, :meth:`Node.wake`
+  tells what the active states wait for (a time, the statuses of their robot
+  commands); until one of those moves, or something reaches the machine from outside,
+  its ticks would change nothing, and the activity skips them (:class:`Wake`).
 """
 
 from __future__ import annotations
@@ -69,6 +73,38 @@ class Status(Enum):
 _INVALID, _RUNNING, _DONE, _FAILED = Status.INVALID, Status.RUNNING, Status.DONE, Status.FAILED
 
 
+@dataclass(slots=True)
+class Wake:
+    """What a waiting machine waits for: the first tick at or after ``deadline``, or a
+    change of status of one of the ``watched`` objects (robot command handles).
+
+    A state's ``update`` that is a pure function of the time against its deadlines and
+    of these statuses returns RUNNING again on every tick before then, so the ticks
+    in between can be skipped without changing what happens (issue 14).
+    """
+
+    deadline: datetime | None = None
+    watched: list[tuple[Any, Any]] = field(default_factory=list)
+    """``(object, its status then)``: the machine wakes when ``object.status`` moves."""
+
+    def join(self, other: Wake) -> Wake:
+        """Wait for both: the earlier deadline, every watched status."""
+        if other.deadline is not None and (self.deadline is None or other.deadline < self.deadline):
+            self.deadline = other.deadline
+        self.watched.extend(other.watched)
+        return self
+
+    def until(self, deadline: datetime | None) -> Wake:
+        """Also wake at ``deadline``."""
+        return self.join(Wake(deadline))
+
+    def holds(self, now: datetime) -> bool:
+        """Whether a tick at ``now`` would still find nothing to do."""
+        if self.deadline is not None and now >= self.deadline:
+            return False
+        return all(watched.status is status for watched, status in self.watched)
+
+
 class Runtime:
     """What the states of one running activity share: context, arguments, content."""
 
@@ -85,8 +121,10 @@ class Runtime:
         self.on_enter: Callable[[Node], None] | None = None
         """Called when a state is entered (the stepper and tests listen)."""
         self.epoch = 0
-        """Counts the changes of any state's status or of a machine's current state:
-        the active path is worked out again only when it moved (issue 14)."""
+        """Counts the changes of any state's status or of a machine's current state, and
+        what reaches a state from outside (a preemption request, a pause or resume, an
+        event taken): the active path is worked out again only when it moved, and a
+        sleeping machine (:class:`Wake`) wakes (issue 14)."""
 
     def content(self, name: str) -> Any:
         return _load_content(self.content_dirs, name)
@@ -246,6 +284,12 @@ class Node:
         """An event while running; True if this state took it."""
         return False
 
+    def wake(self, now: datetime) -> Wake | None:
+        """After a tick at ``now`` that left this state running and changed no status:
+        what it waits for (:class:`Wake`), or None if its next tick may do something
+        whatever happens (the default: a state must say it can sleep)."""
+        return None
+
     def children(self) -> Sequence[Node]:
         return ()
 
@@ -356,6 +400,7 @@ class Node:
         """
         if self._status is not _DONE and self._status is not _FAILED:
             self._preempt_requested = True
+            self.rt.epoch += 1
 
     @property
     def preempt_requested(self) -> bool:
@@ -366,6 +411,7 @@ class Node:
             for child in self.active_children():
                 child.pause(now)
             self.paused = True
+            self.rt.epoch += 1
             self.on_pause(now)
 
     def resume(self, now: datetime) -> None:
@@ -373,6 +419,7 @@ class Node:
         does not restart its commands (its next tick ends it ``preempted``)."""
         if self._status is _RUNNING and self.paused:
             self.paused = False
+            self.rt.epoch += 1
             if self.is_container or not self._preempt_requested:
                 self.on_resume(now)
             for child in self.active_children():
@@ -390,6 +437,7 @@ class Node:
         if self._status is not _RUNNING or self.paused:
             return False
         if self.on_event(event):
+            self.rt.epoch += 1
             return True
         return any(child.deliver(event) for child in self.active_children())
 
@@ -521,6 +569,12 @@ class StateMachine(Container):
         if self.current is not None:
             self.current.preempt()
 
+    def wake(self, now: datetime) -> Wake | None:
+        current = self.current
+        if self._preempt_requested or current is None or current._status is not _RUNNING:
+            return None
+        return current.wake(now)
+
     def update(self, now: datetime) -> Status:
         steps = MAX_STEPS_PER_TICK
         while steps:  # (not a ``range``: most ticks end at the first state, still running)
@@ -621,6 +675,21 @@ class Concurrence(Container):
     def forward_preempt(self) -> None:
         self._preempted = True
         self._wind_down()
+
+    def wake(self, now: datetime) -> Wake | None:
+        """All its running states wait (the ended ones stay as they are): with no
+        status changed, ``update`` decides as it did."""
+        if self._preempt_requested or self._winding_down:
+            return None
+        waiting = Wake()
+        for state in self.states.values():
+            if state._status is _DONE:
+                continue
+            wake = state.wake(now) if state._status is _RUNNING else None
+            if wake is None:
+                return None
+            waiting.join(wake)
+        return waiting
 
     def _wind_down(self) -> None:
         self._winding_down = True
@@ -727,6 +796,11 @@ class Iterator(Container):
     def forward_preempt(self) -> None:
         if self.index < len(self.items):
             self.state.preempt()
+
+    def wake(self, now: datetime) -> Wake | None:
+        if self._preempt_requested or self.state._status is not _RUNNING:
+            return None
+        return self.state.wake(now)
 
     def enter_children(self, now: datetime) -> None:
         items = self.rt.render(self.items_spec, self.data)
@@ -836,6 +910,15 @@ class Guard(Container):
         self._deadline = now + timedelta(seconds=timer) if timer is not None else None
         self.state.reset()
         self.state.bind(self.data)
+
+    def wake(self, now: datetime) -> Wake | None:
+        """Its state's, and its timer."""
+        if self._preempt_requested or self.fired is not None:
+            return None
+        if self.state._status is not _RUNNING:
+            return None
+        wake = self.state.wake(now)
+        return None if wake is None else wake.until(self._deadline)
 
     def on_event(self, event: Event) -> bool:
         if self.fired is None and self.trigger.matches(event):
