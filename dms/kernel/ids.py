@@ -12,6 +12,7 @@ Part of the kernel: it imports nothing of the project.
 
 from __future__ import annotations
 
+import re
 import unicodedata
 from typing import Annotated
 
@@ -24,6 +25,11 @@ KEY_CHARACTERS = frozenset("/*$?#")
 
 _FORBIDDEN_CATEGORIES = frozenset({"Cc", "Cf", "Cs", "Co", "Cn", "Zl", "Zp"})
 """Control, format, surrogate, private-use, unassigned, line and paragraph separators."""
+
+
+_PLAIN = re.compile(r"[A-Za-z0-9_.:@ -]*")
+"""Printable ASCII without the reserved characters: nothing to look up per character
+(most ids; a command id in every robot feedback). ``@`` is checked apart, first only."""
 
 
 class InvalidIdentifier(ValueError):
@@ -48,6 +54,8 @@ def _fault(trimmed: str) -> str | None:
         return f"longer than {MAX_ID_LENGTH} characters"
     if trimmed.startswith("@"):
         return "starts with '@', which Zenoh keeps for verbatim chunks (no query reaches it)"
+    if _PLAIN.fullmatch(trimmed):
+        return None
     for char in trimmed:
         if unicodedata.category(char) in _FORBIDDEN_CATEGORIES:
             return f"holds the control or format character U+{ord(char):04X}"
