@@ -157,6 +157,7 @@ class _Tracker:
         self._wellbeing_area = 0.0
         self._last_wellbeing: float | None = None
         self._summed_t: float | None = None
+        """The last tick summed and its wellbeing: the area runs on from there."""
         self._times: list[float] = []
         self._drives: list[FloatArray | None] = []
         """Each tick's time and drives (None before the first step), not summed yet."""
@@ -217,10 +218,9 @@ class _Tracker:
             wellbeings = self.model.snapshot_wellbeings(rows)
         # before the first step the snapshot says 100 (no drives); steps come after it
         wellbeings = [100.0] * (len(noted) - len(stepped)) + wellbeings
-        area, last = self._wellbeing_area, self._last_wellbeing
-        previous = self._summed_t if last is not None else None
+        area, last, previous = self._wellbeing_area, self._last_wellbeing, self._summed_t
         for t, wellbeing in zip(times, wellbeings, strict=True):
-            if last is not None and previous is not None:
+            if last is not None and previous is not None:  # each tick's until the next
                 area += last * (t - previous)
             last, previous = wellbeing, t
         self._wellbeing_area, self._last_wellbeing, self._summed_t = area, last, previous

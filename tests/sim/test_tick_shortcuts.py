@@ -15,6 +15,7 @@ from datetime import UTC, datetime
 from typing import Any
 
 import numpy as np
+import pytest
 
 from dms.controller import TickRecord
 from managers import ManagerReply, ManagerStatus
@@ -59,9 +60,12 @@ class _FromSnapshots:
         self.samples.append((t, dict(motivation.drives), motivation.wellbeing))
 
 
-def test_the_tracker_gives_what_the_snapshots_give() -> None:
+@pytest.mark.parametrize("batch", [_Tracker.BATCH_TICKS, 7])
+def test_the_tracker_gives_what_the_snapshots_give(batch: int) -> None:
+    """Summed in batches (of 7 ticks too: hundreds of batch ends), the same floats."""
     with Simulation(seed=2, start=START) as sim:
         tracker = _Tracker(START, sim.controller.deps.motivation)
+        tracker.BATCH_TICKS = batch
         reference = _FromSnapshots(sim)
         sim.tick_listeners += [lambda record: tracker.on_tick(sim.t, record), reference.on_tick]
         _morning(sim)
@@ -116,3 +120,23 @@ def test_the_prediction_keeps_the_dominant_drives_of_a_whole_run() -> None:
         assert np.array_equal(lean.final.drives, whole.final.drives)
         assert lean.final.dominant == whole.final.dominant
         assert lean.drives.shape == (0, len(model.names)) and lean.wellbeing.size == 0
+
+
+def test_the_tracker_accounts_each_span_and_its_hours() -> None:
+    """An activity's time is accounted when it ends: the spans, split at the hours."""
+    with Simulation(seed=2, start=START) as sim:
+        tracker = _Tracker(START, sim.controller.deps.motivation)
+        sim.tick_listeners.append(lambda record: tracker.on_tick(sim.t, record))
+        _morning(sim)
+        tracker.finish(sim.t)
+    spans: dict[str, float] = {}
+    for name, t0, t1 in tracker.spans:
+        spans[name] = spans.get(name, 0.0) + t1 - t0
+    assert len(spans) >= 2, "idle behaviors and the visitor's activities"
+    assert tracker.spans[-1][2] == 3.5 * 3600, "the last span runs to the end"
+    assert set(tracker.activity_seconds) == set(spans)
+    for name, seconds in spans.items():
+        assert math.isclose(tracker.activity_seconds[name], seconds, abs_tol=1e-6)
+        by_hour = sum(hours.get(name, 0.0) for hours in tracker.by_hour.values())
+        assert math.isclose(by_hour, seconds, abs_tol=1e-6)
+    assert sum(tracker.by_hour[6].values()) == 3600.0, "06:00-07:00, all of it"
