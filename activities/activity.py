@@ -103,22 +103,11 @@ class Activity:
             self.cancel(now)
             return self.status
         self.ticks += 1
-        asleep = self._asleep
-        if asleep is not None and asleep[1] == self.runtime.epoch and asleep[0].holds(now):
-            self.skipped += 1
-            status = Status.RUNNING
-        else:
-            self._asleep = None
-            epoch = self.runtime.epoch
-            try:
-                status = self.root.tick(now)
-                if status is Status.RUNNING and self.runtime.epoch == epoch:
-                    wake = self.root.wake(now)  # once a quiet spell, not every tick
-                    if wake is not None:
-                        self._asleep = (wake, epoch)
-            except Exception as error:  # a broken block fails its activity, never the daemon
-                self._contain(now, error)
-                return self.status
+        try:
+            status = self._tick_root(now)
+        except Exception as error:  # a broken block fails its activity, never the daemon
+            self._contain(now, error)
+            return self.status
         if self.gaze is not None and status is Status.RUNNING:
             self.gaze.update(now)
         if status is Status.DONE:
@@ -127,6 +116,21 @@ class Activity:
         elif status is Status.FAILED:
             self._end(ActivityStatus.FAILED, "failed", self.root.error or "failed")
         return self.status
+
+    def _tick_root(self, now: datetime) -> Status:
+        """Tick the machine, unless it sleeps and what it waits for has not moved."""
+        asleep = self._asleep
+        if asleep is not None and asleep[1] == self.runtime.epoch and asleep[0].holds(now):
+            self.skipped += 1
+            return Status.RUNNING
+        self._asleep = None
+        epoch = self.runtime.epoch
+        status = self.root.tick(now)
+        if status is Status.RUNNING and self.runtime.epoch == epoch:
+            wake = self.root.wake(now)  # once a quiet spell, not every tick
+            if wake is not None:
+                self._asleep = (wake, epoch)
+        return status
 
     def pause(self, now: datetime) -> None:
         """Freeze at any depth; commands in flight are withdrawn (history keeps the state)."""

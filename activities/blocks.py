@@ -378,11 +378,19 @@ class Block(Node, Generic[P]):
         return Status.RUNNING
 
     def wake(self, now: datetime) -> Wake | None:
-        """This ``update`` reads only its commands' statuses: it waits for them to move.
-        A block with an ``update`` of its own sleeps only if it says so (its ``wake``)."""
-        if type(self).update is not Block.update:
-            return None
-        return self.waiting_on_commands()
+        """This ``update`` reads only its commands' statuses: it waits for them to move."""
+        return self.waiting_on_commands() if self.updates_as(Block) else None
+
+    def updates_as(self, owner: type[Block[Any]]) -> bool:
+        """Whether this block's ``update`` is ``owner``'s, the one whose ``wake`` is being
+        asked, and reads the commands as Block does: a subclass that changes either may
+        read something else, and ticks every tick unless its own ``wake`` says otherwise."""
+        kind = type(self)
+        return (
+            kind.update is owner.update
+            and kind.command_error is Block.command_error
+            and kind.commands_done is Block.commands_done
+        )
 
     def waiting_on_commands(self) -> Wake | None:
         """Sleep until a command's status moves (unless a preemption waits)."""
@@ -548,7 +556,9 @@ class Gesture(Block[GestureParams]):
 
     def wake(self, now: datetime) -> Wake | None:
         """Without ``toward``, this is Block's ``update``; with it, it follows a frame."""
-        return self.waiting_on_commands() if self.args.toward is None else None
+        if self.args.toward is not None or not self.updates_as(Gesture):
+            return None
+        return self.waiting_on_commands()
 
 
 class LedsParams(BlockParams):
@@ -608,7 +618,7 @@ class Wait(Block[WaitParams]):
         return Status.RUNNING
 
     def wake(self, now: datetime) -> Wake | None:
-        if self._preempt_requested:
+        if self._preempt_requested or not self.updates_as(Wait):
             return None
         return Wake(self.countdown.deadline)  # ``over`` is ``now >= deadline``
 

@@ -88,14 +88,15 @@ class Wake:
     """``(object, its status then)``: the machine wakes when ``object.status`` moves."""
 
     def join(self, other: Wake) -> Wake:
-        """Wait for both: the earlier deadline, every watched status."""
+        """Wait for both: the earlier deadline, every watched status (in place: each
+        ``wake`` makes its own)."""
         if other.deadline is not None and (self.deadline is None or other.deadline < self.deadline):
             self.deadline = other.deadline
         self.watched.extend(other.watched)
         return self
 
     def until(self, deadline: datetime | None) -> Wake:
-        """Also wake at ``deadline``."""
+        """Also wake at ``deadline`` (in place)."""
         return self.join(Wake(deadline))
 
     def holds(self, now: datetime) -> bool:

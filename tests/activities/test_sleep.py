@@ -9,16 +9,20 @@ did after every step: the same states at the same ticks, the same commands.
 
 from __future__ import annotations
 
+import random
 from datetime import timedelta
+from pathlib import Path
 from typing import Any
 
+import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from activities import Activity, ActivityStatus, BehaviorLibrary
 from activities.engine import Node
+from dms.kernel.expression import Priority
 from dms.kernel.messages import ScreenChoice, Speech, Touch
-from tests.activities.conftest import Bench
+from tests.activities.conftest import Bench, write_behaviors
 
 LIBRARY = BehaviorLibrary.load()
 OPS = st.sampled_from(
@@ -190,6 +194,145 @@ def test_a_guard_timer_wakes_a_sleeping_machine(make: Any) -> None:
     assert activity.started_at is not None
     assert bench.now - activity.started_at == timedelta(seconds=12.5), "the first tick after"
     assert activity.skipped >= 20
+
+
+# ------------------------------------------------------------ random machines
+
+CHANNELS = ["speech", "screen", "motion", "media", "led"]
+LEAVES: list[tuple[dict[str, Any], tuple[str, ...]]] = [
+    ({"speak": {"text": "one two three four five", "priority": "high"}}, ("done",)),
+    ({"speak": {"text": "one"}}, ("done",)),
+    ({"show": {"text": "hi"}}, ("done",)),
+    ({"leds": {"color": "red"}}, ("done",)),
+    ({"play_media": {"title": "a song", "duration_s": 1.3}}, ("done",)),
+    ({"gesture": {"name": "wave"}}, ("done",)),
+    ({"gesture": {"name": "wave", "toward": "user"}}, ("done",)),
+    ({"wait": {"seconds": 0.7}}, ("done",)),
+    ({"wait": {"seconds": 2.25}}, ("done",)),
+    ({"wait": {"seconds": None}}, ("done",)),
+    (
+        {"ask": {"question": "where?", "choices": ["paris", "rome"], "timeout_s": 2.0}},
+        ("answered", "no_answer"),
+    ),
+    ({"wait_event": {"touch": ["left_shoulder"], "timeout_s": 3.0}}, ("event", "timeout")),
+    ({"set_data": {"add": {"n": 1}}}, ("done",)),
+]
+
+
+def _state(rng: random.Random, depth: int) -> tuple[dict[str, Any], tuple[str, ...]]:
+    """A random state and its outcomes: leaves, machines, concurrences, iterators, guards."""
+    if depth >= 3 or rng.random() < 0.45:
+        leaf, outcomes = rng.choice(LEAVES)
+        return dict(leaf), outcomes
+    kind = rng.choice(["machine", "concurrence", "iterator", "guard"])
+    if kind == "machine":
+        count = rng.randint(1, 3)
+        states = {}
+        for i in range(count):
+            state, outcomes = _state(rng, depth + 1)
+            after = f"S{i + 1}" if i + 1 < count else "done"
+            state["transitions"] = {outcome: after for outcome in outcomes}
+            states[f"S{i}"] = state
+        return {"state_machine": {"outcomes": ["done"], "states": states}}, ("done",)
+    if kind == "concurrence":
+        states = {f"C{i}": _state(rng, depth + 1)[0] for i in range(rng.randint(2, 3))}
+        wait = rng.choice(["all", "any", "match"])
+        spec: dict[str, Any] = {"outcomes": ["done"], "default_outcome": "done", "wait": wait}
+        if wait == "match":
+            states["C0"] = {"wait": {"seconds": 1.5}}
+            spec["outcome_map"] = {"done": {"C0": "done"}}
+        return {"concurrence": {**spec, "states": states}}, ("done",)
+    if kind == "iterator":
+        inner, outcomes = _state(rng, depth + 1)
+        iterate = {
+            "items": rng.randint(1, 3),
+            "continue_on": list(outcomes),
+            "state": {"IT": inner},
+        }
+        return {"iterator": iterate}, ("done",)
+    inner, outcomes = _state(rng, depth + 1)
+    guard = {
+        "state": {"G": inner},
+        "timer_s": rng.choice([None, 1.0, 2.5, 9.0]),
+        "keywords": ["stop"],
+        "touch": ["head"],
+        "outcome": "fired",
+    }
+    return {"guard": guard}, (*outcomes, "fired")
+
+
+OP_WEIGHTS = {
+    "step": 60,
+    "same": 2,
+    "robot": 3,
+    "pause": 1,
+    "resume": 1,
+    "stop": 0.5,
+    "keyword": 0.5,
+    "touch": 0.5,
+    "high": 1,
+    "drop": 1,
+    "fault": 0.5,
+}
+
+
+def _random_op(rng: random.Random) -> tuple[str, Any]:
+    op = rng.choices(list(OP_WEIGHTS), list(OP_WEIGHTS.values()))[0]
+    if op in ("step", "robot"):
+        return op, rng.choice([0.05, 0.25, 0.5, 0.5, 0.5, 1.0, 1.7, 3.0])
+    if op == "high":
+        return op, rng.choice(CHANNELS)
+    if op == "fault":
+        return op, (rng.choice([*CHANNELS, "*"]), rng.choice([None, "fail", "hang", "stall"]))
+    return op, None
+
+
+def _do(bench: Bench, activity: Activity, op: str, arg: Any) -> None:
+    """One thing happening to the activity, its robot or its arbiter."""
+    if op in ("step", "robot"):
+        bench.now += timedelta(seconds=arg)
+        bench.expression.update(bench.now)
+        if op == "step":
+            activity.tick(bench.now)
+    elif op == "same":  # a second tick at the same time (an urgent one)
+        activity.tick(bench.now)
+    elif op == "pause":
+        activity.pause(bench.now)
+    elif op == "resume":
+        activity.resume(bench.now)
+    elif op == "stop":
+        activity.preempt(bench.now, limit_s=5.0)
+    elif op == "keyword":
+        activity.deliver(Speech(text="please stop", confidence=0.9))
+    elif op == "touch":
+        activity.deliver(Touch(part="head", kind="tap"))
+    elif op == "high":  # a dialog's sentence takes the channel: the activity's is queued again
+        args = {"text": "a dialog speaks here"}
+        bench.expression.request("dialog", arg, "say", args, bench.now, Priority.HIGH)
+    elif op == "drop":
+        bench.expression.interrupt_source("dialog", bench.now)
+    else:
+        bench.robot.set_fault(*arg)
+
+
+@settings(max_examples=150, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_random_machines_do_asleep_what_they_do_awake(seed: int, tmp_path_factory: Any) -> None:
+    """Random nesting, robot faults, a dialog taking channels, uneven and repeated ticks."""
+    rng = random.Random(seed)
+    root, outcomes = _state(rng, 0)
+    root["transitions"] = {outcome: "done" for outcome in outcomes}
+    spec = {"name": "fuzz", "outcomes": ["done"], "states": {"TOP": root}}
+    directory = write_behaviors(tmp_path_factory.mktemp("fuzz"), {"fuzz": yaml.safe_dump(spec)})
+    library = BehaviorLibrary.load(Path(directory))
+    sleeping, awake = Bench(library, seed=seed % 1000), Bench(library, seed=seed % 1000)
+    asleep = sleeping.start(sleeping.create("fuzz"))
+    ticking = awake.start(_awake(awake.create("fuzz")))
+    for op, arg in [*(_random_op(rng) for _ in range(120)), *[("step", 1.0)] * 30]:
+        _do(sleeping, asleep, op, arg)
+        _do(awake, ticking, op, arg)
+        assert _trace(sleeping, asleep) == _trace(awake, ticking), (op, arg)
+    assert asleep.result == ticking.result
 
 
 def _states(node: Node) -> list[Node]:
