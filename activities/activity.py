@@ -61,7 +61,9 @@ class Activity:
         self._stop_by: datetime | None = None
         self._asleep: tuple[Wake, int] | None = None
         """What the machine waits for and the ``runtime.epoch`` then: while it holds, a
-        tick of the machine would do nothing and is skipped (issue 14)."""
+        tick of the machine would do nothing and is skipped (issue 14). Whatever reaches
+        the machine from outside (a pause, a resume, a preemption, an event taken, a stop)
+        moves the epoch, which wakes it."""
         self.skipped = 0
         """Ticks skipped while the machine slept (for the tests and benchmarks)."""
 
@@ -134,7 +136,6 @@ class Activity:
 
     def pause(self, now: datetime) -> None:
         """Freeze at any depth; commands in flight are withdrawn (history keeps the state)."""
-        self._asleep = None  # something reaches the machine: it ticks again
         if self.status is ActivityStatus.RUNNING:
             self.root.pause(now)
             if self.gaze is not None:
@@ -143,7 +144,6 @@ class Activity:
 
     def resume(self, now: datetime) -> None:
         """Re-enter the interrupted states; their blocks restart what they were doing."""
-        self._asleep = None  # something reaches the machine: it ticks again
         if self.status is ActivityStatus.PAUSED:
             self.status = ActivityStatus.RUNNING
             if self.gaze is not None:
@@ -168,14 +168,12 @@ class Activity:
             return ActivityStatus.CANCELLED if self.status is None else self.status
         if self._stop_by is not None:  # asked already: one request
             return self.status
-        self._asleep = None
         self._stop_by = now + timedelta(seconds=limit_s)
         self.root.preempt()
         return self.tick(now)
 
     def cancel(self, now: datetime) -> None:
         """Stop from outside at once: every active state, at every depth, no cleanup."""
-        self._asleep = None  # something reaches the machine: it ticks again
         if self.status is None:
             self.status = ActivityStatus.CANCELLED
             self._result = ActivityResult("cancelled", None, None, {})
@@ -187,7 +185,6 @@ class Activity:
 
     def deliver(self, event: Event) -> bool:
         """Offer a perception event; True if a state took it (an answer, a guard)."""
-        self._asleep = None  # something reaches the machine: it ticks again
         if self.status is not ActivityStatus.RUNNING:
             return False
         return self.root.deliver(event)

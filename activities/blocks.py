@@ -519,7 +519,7 @@ class Gesture(Block[GestureParams]):
 
     def begin(self, now: datetime) -> None:
         self.handles = []
-        self.turn: Aim | None = None
+        self.turn = None
         self.hip: float | None = None
         self._retarget(now)
         args: dict[str, Any] = {"name": self.args.name}

@@ -1207,15 +1207,9 @@ class Controller:
     # ------------------------------------------------------------------ agenda
 
     def _due_items(self, now: datetime) -> list[DueItem]:
-        agenda = self.deps.agenda
-        if agenda is None or self._robot_blocked:  # offline: items wait (grace), not consumed
+        if self.deps.agenda is None or self._robot_blocked:  # offline: items wait (grace)
             return []
-        try:  # as _agenda_call, without its lookup: called every tick an activity runs
-            return agenda.due(now, self._ready_user())
-        except Exception as error:
-            log.exception("agenda.due failed")
-            self.deps.report_error("agenda", f"due: {error}")
-            return []
+        return self._agenda_call("due", now, self._ready_user()) or []
 
     def _run_agenda_item(self, item: DueItem, now: datetime) -> None:
         if item.kind == "reminder":

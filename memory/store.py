@@ -458,11 +458,11 @@ class ProfileStore:
         self._count_lock = threading.Lock()
         self._since_prune = 0
         self.retries = 0
+        """Field writes retried because another writer changed the row first."""
         self.after_field_read: Callable[[], None] | None = None
         """Called inside a field write between reading the user's row and writing it: a
         seam where the fleet's tests put another robot's write (the race the version
         check and, on PostgreSQL, the row lock resolve). None in use."""
-        """Field writes retried because another writer changed the row first."""
 
     # ------------------------------------------------------------------ plumbing
 
