@@ -323,14 +323,9 @@ class MotivationModel:
         # clipped: with every drive at 100 the rounding of the mean can leave -1e-14
         return min(100.0, max(0.0, 100.0 - weighted / self._omega_total))
 
-    def snapshot_wellbeing(self, drives: list[float]) -> float:
-        """``snapshot(state)["wellbeing"]`` for ``state.drives.tolist()``, alone: for a
-        reader that needs only it every tick."""
-        return round3(self._wellbeing(drives))
-
     def snapshot_wellbeings(self, drives: FloatArray) -> list[float]:
-        """:meth:`snapshot_wellbeing` of each row of ``drives`` (one state's drives a row),
-        the same floats: for a reader of every tick that takes them in batches."""
+        """``snapshot(state)["wellbeing"]`` for each row of ``drives`` (one state's drives
+        a row), the same floats: for a reader of every tick that takes them in batches."""
         if self._omega_total == 0:
             return [100.0] * len(drives)
         weighted = np.zeros(len(drives))
