@@ -670,6 +670,12 @@ class WaitEvent(Block[WaitEventParams]):
             return self.finish("timeout")
         return Status.RUNNING
 
+    def wake(self, now: datetime) -> Wake | None:
+        """It waits for its timeout, or for an event it takes (taking one wakes it)."""
+        if self._preempt_requested or not self.updates_as(WaitEvent):
+            return None
+        return Wake(self.countdown.deadline)
+
 
 def _words(text: str) -> str:
     return " " + " ".join(re.findall(r"[\w']+", text.lower())) + " "
@@ -788,6 +794,12 @@ class Ask(Block[AskParams]):
                 return self.finish("no_answer")
             self.begin(now)
         return Status.RUNNING
+
+    def wake(self, now: datetime) -> Wake | None:
+        """It waits for its commands (the question said, a failure), for its deadline to
+        ask again, or for an answer it takes (taking one, or mishearing, wakes it)."""
+        waiting = self.waiting_on_commands() if self.updates_as(Ask) else None
+        return None if waiting is None else waiting.until(self.deadline)
 
     def answered(self, answer: str) -> str:
         self.ud[self.args.key] = answer
