@@ -126,12 +126,11 @@ class Activity:
             self.skipped += 1
             return Status.RUNNING
         self._asleep = None
-        epoch = self.runtime.epoch
         status = self.root.tick(now)
-        if status is Status.RUNNING and self.runtime.epoch == epoch:
-            wake = self.root.wake(now)  # once a quiet spell, not every tick
+        if status is Status.RUNNING:
+            wake = self.root.wake(now)  # the states entered this tick have run once
             if wake is not None:
-                self._asleep = (wake, epoch)
+                self._asleep = (wake, self.runtime.epoch)
         return status
 
     def pause(self, now: datetime) -> None:

@@ -378,7 +378,7 @@ class Block(Node, Generic[P]):
         return Status.RUNNING
 
     def wake(self, now: datetime) -> Wake | None:
-        """This ``update`` reads only its commands' statuses: it waits for them to move."""
+        """This ``update`` reads only its commands' statuses: it waits for one to end."""
         return self.waiting_on_commands() if self.updates_as(Block) else None
 
     def updates_as(self, owner: type[Block[Any]]) -> bool:
@@ -393,10 +393,11 @@ class Block(Node, Generic[P]):
         )
 
     def waiting_on_commands(self) -> Wake | None:
-        """Sleep until a command's status moves (unless a preemption waits)."""
+        """Sleep until a command ends (unless a preemption waits): whether they ended,
+        and how, is all that :meth:`update` reads of them."""
         if self._preempt_requested:
             return None
-        return Wake(None, [(handle, handle.status) for handle in self.handles])
+        return Wake(None, [handle for handle in self.handles if not handle.finished])
 
 
 class Countdown:

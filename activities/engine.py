@@ -24,10 +24,10 @@ status: ``INVALID`` means it was stopped from outside). On top come SMACH's sema
   clears a request that was not serviced;
 - pause is history: :meth:`Node.pause` freezes the active states at every depth,
   :meth:`Node.resume` re-enters them and their blocks restart what they were saying;
-- a machine that waits sleeps: after a tick that changed no status, :meth:`Node.wake`
-  tells what the active states wait for (a time, the statuses of their robot
-  commands); until one of those moves, or something reaches the machine from outside,
-  its ticks would change nothing, and the activity skips them (:class:`Wake`).
+- a machine that waits sleeps: after a tick that left it running, :meth:`Node.wake`
+  tells what the active states wait for (a time, the end of their robot commands);
+  until one of those comes, or something reaches the machine from outside, its ticks
+  would change nothing, and the activity skips them (:class:`Wake`).
 """
 
 from __future__ import annotations
@@ -75,24 +75,27 @@ _INVALID, _RUNNING, _DONE, _FAILED = Status.INVALID, Status.RUNNING, Status.DONE
 
 @dataclass(slots=True)
 class Wake:
-    """What a waiting machine waits for: the first tick at or after ``deadline``, or a
-    change of status of one of the ``watched`` objects (robot command handles).
+    """What a waiting machine waits for: the first tick at or after ``deadline``, or the
+    end of one of the robot ``commands`` it waits on.
 
     A state's ``update`` that is a pure function of the time against its deadlines and
-    of these statuses returns RUNNING again on every tick before then, so the ticks
-    in between can be skipped without changing what happens (issue 14).
+    of whether its commands ended (and how) returns RUNNING again on every tick before
+    then, so the ticks in between can be skipped without changing what happens
+    (issue 14).
     """
 
     deadline: datetime | None = None
-    watched: list[tuple[Any, Any]] = field(default_factory=list)
-    """``(object, its status then)``: the machine wakes when ``object.status`` moves."""
+    commands: list[Any] = field(default_factory=list)
+    """Command handles not finished yet: the machine wakes when one is (``finished``).
+    A command that starts, or is queued again behind a more urgent one, changes nothing
+    a waiting block reads."""
 
     def join(self, other: Wake) -> Wake:
-        """Wait for both: the earlier deadline, every watched status (in place: each
-        ``wake`` makes its own)."""
+        """Wait for both: the earlier deadline, every command (in place: each ``wake``
+        makes its own)."""
         if other.deadline is not None and (self.deadline is None or other.deadline < self.deadline):
             self.deadline = other.deadline
-        self.watched.extend(other.watched)
+        self.commands.extend(other.commands)
         return self
 
     def until(self, deadline: datetime | None) -> Wake:
@@ -103,7 +106,7 @@ class Wake:
         """Whether a tick at ``now`` would still find nothing to do."""
         if self.deadline is not None and now >= self.deadline:
             return False
-        return all(watched.status is status for watched, status in self.watched)
+        return not any(command.finished for command in self.commands)
 
 
 class Runtime:
@@ -286,9 +289,10 @@ class Node:
         return False
 
     def wake(self, now: datetime) -> Wake | None:
-        """After a tick at ``now`` that left this state running and changed no status:
-        what it waits for (:class:`Wake`), or None if its next tick may do something
-        whatever happens (the default: a state must say it can sleep)."""
+        """After a tick at ``now`` that left this state running: what it waits for
+        (:class:`Wake`), or None if its next tick may do something whatever happens
+        (the default: a state must say it can sleep). A container asks only its running
+        states: one left to be entered (the tick ran out of steps) must be ticked."""
         return None
 
     def children(self) -> Sequence[Node]:

@@ -1,6 +1,6 @@
 """A waiting machine sleeps (issue 14): the ticks it skips change nothing.
 
-After a tick that changed no status, the activity asks its active states what they
+After a tick that left it running, the activity asks its active states what they
 wait for (:class:`activities.engine.Wake`) and skips its ticks until that moves or
 something reaches it from outside. Each test runs the same activity twice, once with
 sleeping and once without (its root never says it can sleep), and compares what they
@@ -194,6 +194,56 @@ def test_a_guard_timer_wakes_a_sleeping_machine(make: Any) -> None:
     assert activity.started_at is not None
     assert bench.now - activity.started_at == timedelta(seconds=12.5), "the first tick after"
     assert activity.skipped >= 20
+
+
+LOOPING = """
+name: looping
+outcomes: [done]
+userdata: {n: 0}
+states:
+  COUNT:
+    set_data: {add: {n: 1}}
+    transitions: {done: ENOUGH}
+  ENOUGH:
+    check: {value: "{n}", at_least: 450}
+    transitions: {met: NAP, not_met: COUNT}
+  NAP:
+    wait: {seconds: 2}
+    transitions: {done: ROUNDS}
+  ROUNDS:
+    iterator:
+      items: 300
+      continue_on: [done]
+      state: {IT: {set_data: {add: {n: 1}}}}
+    transitions: {done: LAST}
+  LAST:
+    wait: {seconds: 1}
+    transitions: {done: done}
+"""
+
+
+def test_a_tick_cut_short_by_the_step_limit_does_not_sleep(make: Any) -> None:
+    """A machine that runs out of steps in a tick ends it with a state still to enter:
+    it must not sleep then (its next tick enters that state), though its last state
+    was left waiting."""
+    runs = []
+    for never_sleeps in (False, True):
+        bench: Bench = make({"looping": LOOPING})
+        activity = bench.create("looping")
+        if never_sleeps:
+            _awake(activity)
+        bench.start(activity)
+        trace = []
+        while not activity.finished:
+            bench.advance(activity, 0.5)
+            trace.append((activity.state_path, activity.userdata.get("n")))
+            assert len(trace) < 100
+        runs.append((trace, activity.result.outcome, activity.skipped))
+    (slept, outcome, skipped), (ticked, outcome_awake, _) = runs
+    assert slept == ticked, "the same states and counts at every tick"
+    assert [n for _, n in ticked[:2]] == [200, 300], "200 steps a tick (the first at start)"
+    assert outcome == outcome_awake == "done"
+    assert skipped > 0, "it slept in its waits"
 
 
 # ------------------------------------------------------------ random machines
