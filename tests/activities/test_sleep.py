@@ -67,6 +67,17 @@ def _awake(activity: Activity) -> Activity:
     return activity
 
 
+def _twins(make: Any, name: str, behavior: str) -> list[tuple[Bench, Activity]]:
+    """The same activity twice, each on a bench of its own: one that sleeps, one that
+    never does."""
+    twins = []
+    for never_sleeps in (False, True):
+        bench: Bench = make({name: behavior})
+        activity = bench.create(name)
+        twins.append((bench, _awake(activity) if never_sleeps else activity))
+    return twins
+
+
 def _trace(bench: Bench, activity: Activity) -> tuple[Any, ...]:
     return (
         bench.now,
@@ -117,11 +128,7 @@ def test_a_sleeping_activity_does_what_an_awake_one_does(name: str, ops: list[st
 
 def test_a_machine_that_waits_skips_its_ticks_and_wakes_on_time(make: Any) -> None:
     runs = []
-    for never_sleeps in (False, True):
-        bench: Bench = make({"waiting": WAITING})
-        activity = bench.create("waiting")
-        if never_sleeps:
-            _awake(activity)
+    for bench, activity in _twins(make, "waiting", WAITING):
         updates: list[str] = []
         for state in _states(activity.root):
             update = state.update
@@ -227,11 +234,7 @@ def test_a_tick_cut_short_by_the_step_limit_does_not_sleep(make: Any) -> None:
     it must not sleep then (its next tick enters that state), though its last state
     was left waiting."""
     runs = []
-    for never_sleeps in (False, True):
-        bench: Bench = make({"looping": LOOPING})
-        activity = bench.create("looping")
-        if never_sleeps:
-            _awake(activity)
+    for bench, activity in _twins(make, "looping", LOOPING):
         bench.start(activity)
         trace = []
         while not activity.finished:
