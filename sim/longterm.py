@@ -191,9 +191,7 @@ class _Tracker:
             self._sum()
         activity = record.activity
         if activity != self.last_activity:
-            if self.last_activity is not None:
-                self.spans.append((self.last_activity, self._span_start, t))
-                self._account(self.last_activity, self._span_start, t)
+            self._end_span(t)
             self._span_start = t
         self.last_activity = activity
         self.last_t = t
@@ -227,8 +225,13 @@ class _Tracker:
         times.clear()
         noted.clear()
 
-    def _account(self, name: str, t0: float, t1: float) -> None:
-        """Add ``name``'s run from ``t0`` to ``t1``, split at the hours of the day."""
+    def _end_span(self, t1: float) -> None:
+        """The activity running since ``_span_start`` (if any) ends at ``t1``: its span is
+        kept and its time added, split at the hours of the day."""
+        name, t0 = self.last_activity, self._span_start
+        if name is None:
+            return
+        self.spans.append((name, t0, t1))
         self.activity_seconds[name] += t1 - t0
         base = self._base
         t = t0
@@ -241,9 +244,7 @@ class _Tracker:
 
     def finish(self, t: float) -> None:
         self._sum()
-        if self.last_activity is not None:
-            self.spans.append((self.last_activity, self._span_start, t))
-            self._account(self.last_activity, self._span_start, t)
+        self._end_span(t)
 
 
 @contextmanager

@@ -50,9 +50,7 @@ class Seat:
         self._from: Position = home
         self._to: Position = home
         self._at_rest = _rounded(home)
-        self._start = now
-        self._end = now
-        self._next = now + timedelta(seconds=self._rng.uniform(*self.settings.still_s))
+        self.sit(now)
 
     def sit(self, now: datetime) -> None:
         """Sit down again at ``now`` where the face was last: the next move comes after
