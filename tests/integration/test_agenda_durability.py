@@ -48,7 +48,13 @@ def test_a_reminder_delivered_before_a_kill_9_is_not_delivered_again(tmp_path: P
         states = Collector(session, "robots/mini/dms/state")
         put(session, "perception/user", ANN_READY)
         put(session, "request", {"action": "start", "activity": "quiz", "by": "ann"})
-        state = states.wait_for(lambda s: (s["activity"] or {}).get("name") == "quiz")
+        # the request may be served in the tick before Ann's session begins: the agenda
+        # takes items for users the robot has met, so wait until it has met her
+        state = states.wait_for(
+            lambda s: (
+                (s["activity"] or {}).get("name") == "quiz" and (s["user"] or {}).get("id") == "ann"
+            )
+        )
         fire = _ts(state) + 4  # it pauses the quiz to speak
         replies = query(
             session,
