@@ -404,6 +404,23 @@ class _Stale(StoreUnavailable):
     """Another writer changed the row since this write read it (its version moved)."""
 
 
+@contextmanager
+def _classified() -> Iterator[None]:
+    """Database failures inside become StoreUnavailable or StoreRefused (:func:`classify`),
+    a row changed under an ORM write :class:`_Stale`, a key collision :class:`_Conflict`;
+    the store's own errors pass as they are."""
+    try:
+        yield
+    except ProfileError:
+        raise
+    except StaleDataError as error:
+        raise _Stale(f"changed by another writer: {_one_line(error)}") from None
+    except IntegrityError as error:
+        raise _Conflict(f"refused by the database: {_one_line(error)}") from None
+    except SQLAlchemyError as error:
+        raise classify(error) from None
+
+
 class ProfileStore:
     """Profiles and their history in the database at ``url``.
 
@@ -468,44 +485,31 @@ class ProfileStore:
 
     @contextmanager
     def _read(self) -> Iterator[Session]:
-        """One read outside any transaction; errors classified as :meth:`_session`'s."""
-        try:
-            with self._reads() as session:
-                yield session
-        except ProfileError:
-            raise
-        except SQLAlchemyError as error:
-            raise classify(error) from None
+        """One read outside any transaction, through an ORM session (errors classified:
+        :func:`_classified`)."""
+        with _classified(), self._reads() as session:
+            yield session
 
     @contextmanager
     def _read_connection(self) -> Iterator[Connection]:
         """:meth:`_read` without an ORM session, for Core statements."""
-        try:
-            with self._read_engine.connect() as connection:
-                yield connection
-        except ProfileError:
-            raise
-        except SQLAlchemyError as error:
-            raise classify(error) from None
+        with _classified(), self._read_engine.connect() as connection:
+            yield connection
 
     @contextmanager
     def _session(self) -> Iterator[Session]:
-        """One short transaction; database failures become StoreUnavailable or
-        StoreRefused (:func:`classify`).
+        """One short transaction through an ORM session, for what reads or deletes
+        mapped rows (export, erase, listings); errors classified (:func:`_classified`)."""
+        with _classified(), self._sessions.begin() as session:
+            yield session
 
-        The writes run Core statements on its connection (``session.connection()``);
-        the session is what the transaction and its events hang from."""
-        try:
-            with self._sessions.begin() as session:
-                yield session
-        except ProfileError:
-            raise
-        except StaleDataError as error:
-            raise _Stale(f"changed by another writer: {_one_line(error)}") from None
-        except IntegrityError as error:
-            raise _Conflict(f"refused by the database: {_one_line(error)}") from None
-        except SQLAlchemyError as error:
-            raise classify(error) from None
+    @contextmanager
+    def _transaction(self) -> Iterator[Connection]:
+        """One short transaction on a plain connection, for the writes: they run Core
+        statements, and an ORM session's own bookkeeping was a quarter of a profile
+        write's time (issue 14). Errors classified (:func:`_classified`)."""
+        with _classified(), self.engine.begin() as connection:
+            yield connection
 
     @staticmethod
     def _user(session: Session, user_id: str) -> UserRow:
@@ -563,7 +567,7 @@ class ProfileStore:
         self,
         write_id: str | None,
         user_id: str,
-        change: Callable[[Session], T],
+        change: Callable[[Connection], T],
         again: Callable[[int | None], T],
         result: Callable[[T], int | None] = lambda _: None,
     ) -> T:
@@ -582,10 +586,10 @@ class ProfileStore:
             )
         for attempt in range(MAX_ATTEMPTS):
             try:
-                with self._session() as session:
-                    answer = change(session)
+                with self._transaction() as connection:
+                    answer = change(connection)
                     if write_id is not None:
-                        session.connection().execute(
+                        connection.execute(
                             _INSERT_APPLIED,
                             {
                                 "write_id": write_id,
@@ -635,11 +639,11 @@ class ProfileStore:
     def prune_applied(self, before: datetime) -> int:
         """Forget the ids of writes applied before ``before``; how many went."""
         _check_time("before", before)
-        with self._session() as session:
-            gone = session.execute(
+        with self._transaction() as connection:
+            gone = connection.execute(
                 delete(AppliedWriteRow).where(AppliedWriteRow.applied_at < before)
             )
-            return int(gone.rowcount)  # type: ignore[attr-defined]
+            return int(gone.rowcount)
 
     def _field_write(
         self,
@@ -656,8 +660,7 @@ class ProfileStore:
 
         Nothing changed, nothing is written and the version stays (as the ORM did)."""
 
-        def run(session: Session) -> Profile:
-            connection = session.connection()
+        def run(connection: Connection) -> Profile:
             columns, scores = _load(connection, user_id, lock=self._dialect == "postgresql")
             row = _fields(columns)
             change(row)
@@ -714,8 +717,7 @@ class ProfileStore:
         with self._read_connection() as connection, suppress(ProfileNotFound):
             return self._fresh(connection, user_id)
         try:
-            with self._session() as session:
-                connection = session.connection()
+            with self._transaction() as connection:
                 if self._upserts is not None:
                     connection.execute(self._upserts[1], values)
                 else:
@@ -883,8 +885,7 @@ class ProfileStore:
         With a ``write_id`` (the daemon's session key) a replay returns the same session."""
         _check_time("now", now)
 
-        def change(session: Session) -> int:
-            connection = session.connection()
+        def change(connection: Connection) -> int:
             self._check_user(connection, user_id)
             inserted = connection.execute(_INSERT_SESSION, {"user_id": user_id, "started_at": now})
             (session_id,) = inserted.inserted_primary_key or (None,)
@@ -910,8 +911,7 @@ class ProfileStore:
         values: dict[str, Any] = {"ended_at": now, "key_id": session_id}
         if metrics is not None:
             values["metrics"] = dict(metrics)
-        with self._session() as session:
-            connection = session.connection()
+        with self._transaction() as connection:
             if connection.execute(_SESSION_EXISTS, {"key_id": session_id}).first() is None:
                 raise ProfileError(f"session_id: no session {session_id!r}")
             connection.execute(_END_SESSION, values)
@@ -961,8 +961,7 @@ class ProfileStore:
         if ended < started:
             raise ProfileError("ended: is before started")
 
-        def change(session: Session) -> Profile:
-            connection = session.connection()
+        def change(connection: Connection) -> Profile:
             self._touch(connection, user_id, ended)
             if (
                 session_id is not None
@@ -1009,8 +1008,7 @@ class ProfileStore:
         ):
             raise ProfileError(f"score: must be a number between 0 and 1 (got {score!r:.60})")
 
-        def change(session: Session) -> Profile:
-            connection = session.connection()
+        def change(connection: Connection) -> Profile:
             self._touch(connection, user_id, now)
             connection.execute(
                 _INSERT_FEEDBACK,
