@@ -354,6 +354,11 @@ class Agenda:
             f"{head}: run `dms db upgrade`"
         )
 
+    @property
+    def engine(self) -> Engine:
+        """The agenda's database engine (the simulator sets its throw-away file's sync)."""
+        return self._engine
+
     def close(self) -> None:
         """Finish the background work, write what is queued and release the database.
 
