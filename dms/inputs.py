@@ -131,6 +131,15 @@ class InputBoard:
         self._stale_after = defaults
         self._lock = threading.Lock()
         self._slots: dict[str, _Slot] = {key: _Slot() for key in keys.INPUT_KEYS}
+        self._state_slots = [
+            (key, self._slots[key], defaults.get(key), key in _OPTIONAL_KEYS)
+            for key in keys.INPUT_KEYS
+            if key not in _EVENT_KEYS
+        ]
+        """(key, slot, stale limit, optional) of the state inputs, in key order."""
+        self._event_slots = [
+            (key, self._slots[key]) for key in keys.INPUT_KEYS if key in _EVENT_KEYS
+        ]
         self._events: deque[InputEvent] = deque(maxlen=MAX_EVENTS_QUEUED)
         self._robot_params: dict[str, Any] = {}
         self._env_params: dict[str, Any] = {}
@@ -148,7 +157,7 @@ class InputBoard:
             if isinstance(message, ProfileParams):
                 target = self._robot_params if key == keys.PARAMS_ROBOT else self._env_params
                 target.update(message.values)
-            if key in keys.EVENT_INPUTS:
+            if key in _EVENT_KEYS:
                 if len(self._events) == self._events.maxlen:
                     self.counters.dropped_events += 1
                 self._events.append(InputEvent(key, message, received))
@@ -180,7 +189,7 @@ class InputBoard:
     def _status(self, key: str, slot: _Slot, monotonic_now: float) -> InputStatus:
         if slot.token_seen and not slot.token_alive:
             return "missing"
-        if key in keys.EVENT_INPUTS:
+        if key in _EVENT_KEYS:
             return "ok"
         if slot.value is None or slot.updated is None:
             return "missing"
@@ -190,21 +199,34 @@ class InputBoard:
         return "ok"
 
     def take(self, monotonic_now: float) -> InputSnapshot:
-        """The inputs for one tick; event inputs are handed over once."""
+        """The inputs for one tick; event inputs are handed over once.
+
+        Each input's status is :meth:`_status`'s, worked out inline over slots paired with
+        their limits once (this runs every tick: issue 14)."""
         with self._lock:
             status: dict[str, InputStatus] = {}
             values: dict[str, BaseModel] = {}
-            for key, slot in self._slots.items():
-                if key in _EVENT_KEYS:
-                    if not slot.token_seen and slot.value is None:
-                        continue  # an event input nobody has declared or used: not worth a line
-                    status[key] = "missing" if slot.token_seen and not slot.token_alive else "ok"
-                    continue
-                if key in _OPTIONAL_KEYS and not slot.token_seen and slot.updated is None:
+            for key, slot, limit, optional in self._state_slots:
+                if slot.token_seen:
+                    if not slot.token_alive:
+                        status[key] = "missing"
+                        continue
+                elif optional and slot.updated is None:
                     continue  # an optional input (objects, joints) no module provides
-                state = status[key] = self._status(key, slot, monotonic_now)
-                if state == "ok" and slot.value is not None:  # a state input (INPUT_KEYS)
-                    values[key] = slot.value
+                value, updated = slot.value, slot.updated
+                if value is None or updated is None:
+                    status[key] = "missing"
+                elif limit is not None and monotonic_now - updated > limit:
+                    status[key] = "stale"
+                else:
+                    status[key] = "ok"
+                    values[key] = value
+            for key, slot in self._event_slots:
+                if slot.token_seen:
+                    status[key] = "ok" if slot.token_alive else "missing"
+                elif slot.value is not None:
+                    status[key] = "ok"
+                # else: an event input nobody has declared or used: not worth a line
             events: tuple[InputEvent, ...] = ()
             if self._events:
                 events = tuple(
