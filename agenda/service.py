@@ -499,8 +499,8 @@ class Agenda:
                 elif now_us >= self._poll_at_us:
                     poll = True
                     self._poll_at_us = now_us + self._poll_us
-            if present_user is not None:
-                self._seen[present_user] = max(self._seen.get(present_user, 0), now_us)
+            if present_user is not None and now_us >= self._seen.get(present_user, 0):
+                self._seen[present_user] = now_us
             waiting = [] if present_user is None else self._index.waiting_for(present_user)
             to_claim = [item for item in waiting if self._needs_claim(item, now_us)]
             for item in to_claim:

@@ -1366,7 +1366,7 @@ class Controller:
         activity = self.managers[running.manager].activity
         return (
             running.name,
-            running.manager.value,
+            str(running.manager),  # a StrEnum's text; ``.value`` is two Python calls
             "paused" if running.paused else "running",
             activity.state_path if activity is not None else "",
         )

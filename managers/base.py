@@ -144,7 +144,7 @@ class Manager:
         except Exception as error:
             log.exception("activity %s raised", self._activity_name)
             return self._finish(ManagerStatus.FAILED, detail=f"{type(error).__name__}: {error}")
-        if status in _FINAL:
+        if status is not ActivityStatus.RUNNING and status in _FINAL:  # no enum hash a tick
             result = activity.result
             return self._finish(_FINAL[status], detail=result.error, redirect=result.redirect)
         going = ManagerStatus.PAUSED if status is ActivityStatus.PAUSED else ManagerStatus.RUNNING

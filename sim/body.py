@@ -35,16 +35,17 @@ class SimBody:
 
     def advance(self, now: datetime) -> dict[str, float]:
         """The joint positions at ``now``: each moved toward its target at its speed."""
-        elapsed = max(0.0, (now - self._at).total_seconds())
-        self._at = max(self._at, now)
-        if elapsed > 0.0 and self.targets != self.positions:
-            for name, target in self.targets.items():
-                position = self.positions[name]
-                step = JOINTS[name].speed * elapsed
-                if abs(target - position) <= step:
-                    self.positions[name] = target
-                else:
-                    self.positions[name] = position + (step if target > position else -step)
+        elapsed = (now - self._at).total_seconds()
+        if elapsed > 0.0:  # a time before the last is not a move back
+            self._at = now
+            if self.targets != self.positions:
+                for name, target in self.targets.items():
+                    position = self.positions[name]
+                    step = JOINTS[name].speed * elapsed
+                    if abs(target - position) <= step:
+                        self.positions[name] = target
+                    else:
+                        self.positions[name] = position + (step if target > position else -step)
         return dict(self.positions)
 
     @property
