@@ -77,7 +77,14 @@ from dms.rules import LiveRules
 from dms.scene import Scene
 from managers import Manager, ManagerReply, ManagerStatus, make_managers
 from memory import ActivityChooser, Profile, Question, QuestionBank
-from motivation import MotivationModel, MotivationState, Percepts, Stimuli, simulate
+from motivation import (
+    MotivationModel,
+    MotivationState,
+    Percepts,
+    Stimuli,
+    dominance_holds,
+    simulate,
+)
 
 log = logging.getLogger(__name__)
 _T = TypeVar("_T")
@@ -432,6 +439,8 @@ class Controller:
         model = self.deps.motivation
         stimuli = model.stimuli(Percepts(percepts.user_present, percepts.engagement, percepts.env))
         running = self.current.name if self.current and not self.current.paused else None
+        if dominance_holds(model, state, stimuli, running, horizon_s):
+            return None  # no drive is near a threshold: no run needed to know
         period = self.settings.tick_period_s
         run = simulate(
             model,

@@ -209,6 +209,46 @@ def advance(
     return run.final
 
 
+BOUND_MARGIN = 1e-6
+"""Points kept clear of a threshold or satiation level by :func:`dominance_holds`: far
+more than the rounding of a month of summed changes, far less than any setting."""
+
+
+def dominance_holds(
+    model: MotivationModel,
+    state: MotivationState,
+    stimuli: Stimuli,
+    running: str | None,
+    seconds: float,
+) -> bool:
+    """Whether the dominant drive (or the lack of one) surely stays as it is for the
+    next ``seconds`` under these inputs, known from a bound alone: True is certain, and
+    ``simulate`` would find the same dominant at every tick; False only means that a
+    run must tell.
+
+    A drive's rate is ``a + b * cos(...)``, so in ``seconds`` it rises at most
+    ``max(0, a + b) * seconds`` and falls at most ``max(0, b - a) * seconds`` (a wall
+    only holds it back). The dominance holds if no other drive can reach its threshold
+    and the dominant one cannot fall below its satiation level: an idle robot's drives
+    are mostly far from both, and a predictor asks this before simulating (issue 14).
+    """
+    if seconds < 0:
+        raise ValueError(f"seconds must not be negative, got {seconds}")
+    drives = np.maximum(0.0, state.drives - stimuli.instant).tolist()  # as ``simulate``
+    growth = model.net_growth(stimuli, running).tolist()
+    swing = np.abs(model.swing(running)).tolist()
+    table = model.table
+    for i, drive in enumerate(drives):
+        a, b = growth[i], swing[i]
+        if i == state.dominant:
+            fall = max(0.0, b - a) * seconds
+            if drive - fall < float(table.release[i]) + BOUND_MARGIN:
+                return False
+        elif drive + max(0.0, a + b) * seconds > float(table.threshold[i]) - BOUND_MARGIN:
+            return False
+    return True
+
+
 def simulate(
     model: MotivationModel,
     state: MotivationState,
