@@ -324,6 +324,11 @@ class ActivityChooser:
         self._lock = threading.Lock()
         self._training: threading.Thread | None = None
         self._last_retrain: datetime | None = None
+        self._last_beliefs: (
+            tuple[Profile, PreferenceModel, dict[str, tuple[float, float]]] | None
+        ) = None
+        """The last profile asked about, the model that answered and its beliefs: a
+        choice asks twice (to choose, then to explain), of the same frozen profile."""
 
     def session_ended(self, now: datetime) -> bool:
         """When a user leaves: retrain if none ran for :attr:`retrain_every_s`.
@@ -381,7 +386,10 @@ class ActivityChooser:
         """Per activity, Beta(alpha, beta) with the mean and spread of the belief about how
         much the user likes it (:meth:`posteriors`): alpha / (alpha + beta) is the
         expected liking. Without evidence it is the prior itself."""
-        prior = self.model.win_scores(profile.features()) or dict.fromkeys(ACTIVITIES, 0.5)
+        model, last = self.model, self._last_beliefs
+        if last is not None and last[0] is profile and last[1] is model:
+            return dict(last[2])
+        prior = model.win_scores(profile.features()) or dict.fromkeys(ACTIVITIES, 0.5)
         out = {}
         for name in ACTIVITIES:
             score = profile.scores.get(name)
@@ -394,7 +402,8 @@ class ActivityChooser:
             spread = max(float(belief @ (GRID - mean) ** 2), 1e-6)
             size = max(mean * (1.0 - mean) / spread - 1.0, 1e-3)
             out[name] = (mean * size, (1.0 - mean) * size)
-        return out
+        self._last_beliefs = (profile, model, out)
+        return dict(out)
 
     def ranking(self, profile: Profile, rng: random.Random) -> list[str]:
         """The blended ranking (expected liking), best first; ties at random."""
