@@ -106,7 +106,12 @@ class Wake:
         """Whether a tick at ``now`` would still find nothing to do."""
         if self.deadline is not None and now >= self.deadline:
             return False
-        return not any(command.finished for command in self.commands)
+        for command in self.commands:  # a loop, not a generator: asked every tick
+            if command.finished:
+                break
+        else:
+            return True
+        return False
 
 
 class Runtime:
@@ -205,7 +210,8 @@ class UserdataView(MutableMapping[str, Any]):
     def __getitem__(self, key: str) -> Any:
         if not self._open and key not in self._inputs:
             raise KeyError(key)
-        return self._target[self._key(key)]
+        # ``_key`` written out: a read passes through every view up to the machine's
+        return self._target[self._remap.get(key, key)]
 
     def __setitem__(self, key: str, value: Any) -> None:
         if not self._open and key not in self._outputs:

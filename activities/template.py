@@ -39,8 +39,11 @@ def lookup(root: Any, parts: list[str]) -> Any:
     """Walk ``parts`` into mappings (and lists by index); raise Missing if absent."""
     value = root
     for part in parts:
-        if isinstance(value, Mapping) and part in value:
-            value = value[part]
+        if isinstance(value, Mapping):
+            try:  # one read, not ``in`` then a read: a userdata view reads its parents'
+                value = value[part]
+            except KeyError:
+                raise Missing(part) from None
         elif isinstance(value, list | tuple) and part.isdigit() and int(part) < len(value):
             value = value[int(part)]
         else:
