@@ -246,18 +246,17 @@ class Simulation:
 
     def tick(self, urgent: bool = False) -> TickRecord:
         """One controller tick now, with the perception refreshed first."""
+        clock = self.clock  # the clock stands still during a tick
+        now, t = clock.now(), clock.monotonic()
         if self.perception_on:  # a refresh of what is perceived, not a new input
-            monotonic = self.clock.monotonic()
             if self.user is not None:
-                perceived = self.user.perception(self.clock.now())
-                self.stack.inputs.accept(keys.PERCEPTION_USER, perceived, monotonic)
+                perceived = self.user.perception(now)
+                self.stack.inputs.accept(keys.PERCEPTION_USER, perceived, t)
             elif self.presence is not None:
-                self.stack.inputs.accept(keys.PERCEPTION_USER, self.presence, monotonic)
-        now = self.clock.now()
-        record = self.controller.tick(now, self.clock.monotonic(), urgent)
+                self.stack.inputs.accept(keys.PERCEPTION_USER, self.presence, t)
+        record = self.controller.tick(now, t, urgent)
         self.ticks += 1
         self.last = record
-        t = self.t
         for decision in record.decisions:
             timed = TimedDecision(t, decision)
             self.decisions.append(timed)

@@ -191,6 +191,8 @@ class SessionObserver:
         The controller reads the robot's feedback during its tick, so a ``started_at``
         seen now was set in this tick, at ``t``.
         """
+        if not self._loading:
+            return  # most ticks: nothing is loading (no list to copy)
         for name, (began, handle) in list(self._loading.items()):
             if handle is None:
                 continue

@@ -152,6 +152,8 @@ class SessionAccount:
         now was heard at ``now``; a command sent in this tick is noted before any
         feedback on it can come.
         """
+        if not self._loading:
+            return  # most ticks: nothing is loading (no list to copy)
         for name, (began, handle) in list(self._loading.items()):
             if handle is None:
                 sent = [h for h in pending(ACTIVITY_SOURCE + name) if h.sent_at is not None]
