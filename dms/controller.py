@@ -26,8 +26,7 @@ import random
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
-from functools import partial
-from typing import Any, Generic, Literal, NamedTuple, TypeVar
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 
@@ -87,9 +86,21 @@ from motivation import (
 )
 
 log = logging.getLogger(__name__)
-_T = TypeVar("_T")
 
 _ActivityParts = tuple[str, str, Literal["running", "paused"], str]
+_StateParts = tuple[
+    str,
+    int,
+    datetime,
+    Mode,
+    "tuple[str, bool, str, float] | None",
+    "_ActivityParts | None",
+    "_ActivityParts | None",
+    Mapping[str, Any],
+    bool,
+]
+""":func:`_dms_state`'s arguments but the motivation (robot, tick, now, mode, user,
+activity, suspended, inputs, offline)."""
 """An ActivityState's fields taken at a tick: name, manager, status, state path."""
 
 NO_FEEDBACK_FOR = frozenset({"menu", "notification", "sleep", "wait", "instructions"})
@@ -119,19 +130,35 @@ class Running:
     agenda_item: DueItem | None = None
 
 
-class _Lazy(Generic[_T]):
-    """A value made on first read, once."""
+class _TickState:
+    """What DmsState is made of, taken at one tick (the controller moves on after it);
+    the models are made on first read, once.
 
-    __slots__ = ("_make", "_value")
+    Every tick makes one and most are never read (a simulation reads none): plain values
+    in one object, no closures (issue 14). ``parts`` are :func:`_dms_state`'s arguments
+    but the motivation, which is ``_motivation_snapshot(model, motivation_state)``.
+    """
 
-    def __init__(self, make: Callable[[], _T]) -> None:
-        self._make: Callable[[], _T] | None = make
-        self._value: _T | None = None
+    __slots__ = ("_model", "_motivation", "_motivation_state", "_parts", "_state")
 
-    def get(self) -> _T:
-        if self._make is not None:
-            self._value, self._make = self._make(), None
-        return self._value  # type: ignore[return-value]
+    def __init__(
+        self, parts: _StateParts, model: MotivationModel, motivation_state: MotivationState | None
+    ) -> None:
+        self._parts = parts
+        self._model = model
+        self._motivation_state = motivation_state
+        self._state: DmsState | None = None
+        self._motivation: MotivationSnapshot | None = None
+
+    def motivation(self) -> MotivationSnapshot:
+        if self._motivation is None:
+            self._motivation = _motivation_snapshot(self._model, self._motivation_state)
+        return self._motivation
+
+    def state(self) -> DmsState:
+        if self._state is None:
+            self._state = _dms_state(*self._parts, self.motivation())
+        return self._state
 
 
 class TickRecord(NamedTuple):
@@ -147,8 +174,8 @@ class TickRecord(NamedTuple):
     time: datetime
     urgent: bool
     decisions: tuple[Decision, ...]
-    lazy_state: _Lazy[DmsState]
-    lazy_motivation: _Lazy[MotivationSnapshot]
+    taken: _TickState
+    """What the state is made of, taken at the tick."""
     activity: str | None = None
     """``state.activity.name``: the current activity (running or paused), if any."""
     motivation_state: MotivationState | None = None
@@ -158,12 +185,12 @@ class TickRecord(NamedTuple):
 
     @property
     def state(self) -> DmsState:
-        return self.lazy_state.get()
+        return self.taken.state()
 
     @property
     def motivation(self) -> MotivationSnapshot:
         """``state.motivation`` alone (cheaper than the whole state)."""
-        return self.lazy_motivation.get()
+        return self.taken.motivation()
 
 
 @dataclass
@@ -272,7 +299,7 @@ class Controller:
         self._user: UserPerception | None = None
         self._requests: list[_Asked] = []
         self._touches: list[tuple[str, str]] = []
-        self._lazy_state: _Lazy[DmsState] | None = None
+        self._taken: _TickState | None = None
         self._robot_blocked = False
         self._cleaning: set[ManagerName] = set()
         """Managers whose cancelled activities still run their cleanup states."""
@@ -357,8 +384,7 @@ class Controller:
                 session.account.on_tick(now, self.deps.expression.pending)
             except Exception as error:
                 self._contain("metrics", None, error)
-        state, motivation = self._state_of(now)
-        self._lazy_state = state
+        taken = self._taken = self._state_of(now)
         self.counters.decisions += len(self._decisions)
         current = self.current.name if self.current is not None else None
         return TickRecord(
@@ -366,8 +392,7 @@ class Controller:
             now,
             urgent,
             tuple(self._decisions),
-            state,
-            motivation,
+            taken,
             current,
             self._motivation,
         )
@@ -395,9 +420,8 @@ class Controller:
         if self._session is not None:
             with self._barrier.step("shutdown", self._session.user_id):
                 self._end_session(now)
-        state, motivation = self._state_of(now)
-        self._lazy_state = state
-        return TickRecord(self._tick, now, False, tuple(self._decisions), state, motivation)
+        taken = self._taken = self._state_of(now)
+        return TickRecord(self._tick, now, False, tuple(self._decisions), taken)
 
     # ------------------------------------------------------------------ step 1
 
@@ -1382,15 +1406,10 @@ class Controller:
 
     def build_state(self, now: datetime) -> DmsState:
         """The DmsState for ``now`` from what the controller holds."""
-        return self._state_of(now)[0].get()
+        return self._state_of(now).state()
 
-    def _state_of(self, now: datetime) -> tuple[_Lazy[DmsState], _Lazy[MotivationSnapshot]]:
-        """DmsState for ``now``, and its motivation part alone: what they are made of is
-        taken now, since the controller moves on; the models are made on first read.
-
-        Every tick makes these, and most are never read (a simulation reads none): the
-        parts are plain values bound with ``partial``, no closure (issue 14)."""
-        motivation = _Lazy(partial(_motivation_snapshot, self.deps.motivation, self._motivation))
+    def _state_of(self, now: datetime) -> _TickState:
+        """What DmsState for ``now`` is made of, taken now (the controller moves on)."""
         session = self._session
         user: tuple[str, bool, str, float] | None = None
         mode: Mode = "motivation"
@@ -1400,25 +1419,24 @@ class Controller:
             user = (user_id, self._ready_user() == user_id, proactivity, session.p_user)
             mode = session.mode
         snapshot = self._snapshot
-        state = partial(
-            _dms_state,
+        suspended = self.suspended
+        parts = (
             self.robot_id,
             self._tick,
             now,
             mode,
             user,
             self._activity_state(self.current),
-            self._activity_state(self.suspended),
+            None if suspended is None else self._activity_state(suspended),
             snapshot.status if snapshot is not None else {},
             self.deps.expression.robot_offline,
-            motivation,
         )
-        return _Lazy(state), motivation
+        return _TickState(parts, self.deps.motivation, self._motivation)
 
     @property
     def state(self) -> DmsState | None:
         """The state after the last tick."""
-        return self._lazy_state.get() if self._lazy_state is not None else None
+        return self._taken.state() if self._taken is not None else None
 
     @property
     def running_activity(self) -> Any:
@@ -1447,7 +1465,7 @@ def _dms_state(
     suspended: _ActivityParts | None,
     inputs: Mapping[str, Any],
     offline: bool,
-    motivation: _Lazy[MotivationSnapshot],
+    motivation: MotivationSnapshot,
 ) -> DmsState:
     """The DmsState of the parts :meth:`Controller._state_of` took at a tick: ``user``
     is (id, ready, proactivity, p_user), an activity (name, manager, status, state)."""
@@ -1463,7 +1481,7 @@ def _dms_state(
         ),
         activity=_activity_model(activity),
         suspended=_activity_model(suspended),
-        motivation=motivation.get(),
+        motivation=motivation,
         inputs=dict(inputs),
         robot_link="offline" if offline else "ok",
     )

@@ -32,7 +32,7 @@ from datetime import datetime, timedelta
 from typing import Literal
 
 from dms.kernel.body import JOINTS
-from dms.kernel.messages import RobotCommand, RobotFeedback
+from dms.kernel.messages import FeedbackStatus, RobotCommand, RobotFeedback
 from sim.body import SimBody
 
 Fault = Literal["fail", "hang", "stall"]
@@ -240,7 +240,7 @@ class SimRobot:
         return [running.command for running in self._running.values()]
 
     def _emit(
-        self, when: datetime, command_id: str, status: str, detail: str | None = None
+        self, when: datetime, command_id: str, status: FeedbackStatus, detail: str | None = None
     ) -> None:
         self._seq += 1
         # made, not validated: the simulator's own statuses (a validation per command
