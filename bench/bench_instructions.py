@@ -3,15 +3,17 @@
 Wall time on a shared machine moves by a tenth within the hour (the same commit ran the
 30-day simulation in 9.9 s and in 12.2 s on one evening), which hides any change
 smaller than that. The instructions a run executes move by about 0.1 % between runs,
-so two commits can be compared by them. Counted by valgrind's cachegrind, with no
-cache simulation; a run takes about fifty times its wall time (some 9 minutes for
-30 days).
+so two commits can be compared by them, provided the hashes of strings are the same in
+both: Python picks a random hash seed per process, which moves the count by up to 1 %
+(dictionaries and sets lay out differently), so the runs use ``PYTHONHASHSEED=0``
+(``--hash-seed``). Counted by valgrind's cachegrind, with no cache simulation; a run
+takes about fifty times its wall time (some 9 minutes for 30 days).
 
 - ``imports``: importing the simulator (what ``bench_sim.py`` does before it times);
 - ``run``: ``run_longterm`` itself, the part ``bench_sim.py`` times as
   ``longterm_30d_3u_s``, its stack's own imports included (the difference of two runs).
 
-Run: ``.venv/bin/python bench/bench_instructions.py [--days 30] [--seed 0]``
+Run: ``.venv/bin/python bench/bench_instructions.py [--days 30] [--seed 0] [--hash-seed 0]``
 (needs ``valgrind``: ``apt install valgrind``).
 """
 
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import re
 import shutil
 import subprocess
@@ -33,7 +36,7 @@ RUN = (
 REFS = re.compile(r"I\s+refs:\s+([\d,]+)")
 
 
-def instructions(code: str) -> tuple[int, str]:
+def instructions(code: str, hash_seed: int) -> tuple[int, str]:
     """The instructions ``python -c code`` executes under cachegrind, and its stdout."""
     done = subprocess.run(
         [
@@ -48,6 +51,7 @@ def instructions(code: str) -> tuple[int, str]:
         capture_output=True,
         text=True,
         check=False,
+        env={**os.environ, "PYTHONHASHSEED": str(hash_seed)},
     )
     found = REFS.search(done.stderr)
     if done.returncode != 0 or found is None:
@@ -60,13 +64,21 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--days", type=int, default=30, help="simulated days (default 30)")
     parser.add_argument("--seed", type=int, default=0, help="the run's seed (default 0)")
+    parser.add_argument(
+        "--hash-seed",
+        type=int,
+        default=0,
+        help="PYTHONHASHSEED of the runs (default 0): the same in runs to compare",
+    )
     args = parser.parse_args()
     if args.days < 1:
         parser.error("--days: must be at least 1")
     if shutil.which("valgrind") is None:
         raise SystemExit("bench_instructions: valgrind not found (apt install valgrind)")
-    imports, _ = instructions(IMPORTS)
-    total, printed = instructions(RUN.format(days=args.days, seed=args.seed))
+    if not 0 <= args.hash_seed <= 4294967295:
+        parser.error("--hash-seed: must be in [0, 4294967295]")
+    imports, _ = instructions(IMPORTS, args.hash_seed)
+    total, printed = instructions(RUN.format(days=args.days, seed=args.seed), args.hash_seed)
     words = printed.split()
     print(
         json.dumps(
@@ -74,6 +86,7 @@ def main() -> None:
                 "benchmark": "instructions",
                 "days": args.days,
                 "seed": args.seed,
+                "hash_seed": args.hash_seed,
                 "imports_g": round(imports / 1e9, 3),
                 "run_g": round((total - imports) / 1e9, 3),
                 "decisions": int(words[words.index("decisions") + 1]),
