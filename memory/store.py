@@ -338,7 +338,12 @@ def _upserts(dialect: str) -> tuple[Executable, Executable] | None:
 def _load(
     connection: Connection, user_id: str, lock: bool = False
 ) -> tuple[RowMapping, dict[str, ActivityScore]]:
-    """The user's columns and scores; ProfileNotFound without the user."""
+    """The user's columns and scores; ProfileNotFound without the user.
+
+    Two statements, not a join (which decoded the user's columns again for every score).
+    In a write's transaction they agree: every write that moves a score first writes or
+    locks the user's row. A read outside one may see scores a moment newer than the row.
+    """
     key = {"key_user_id": user_id}
     user = connection.execute(_LOAD_USER_FOR_UPDATE if lock else _LOAD_USER, key).first()
     if user is None:
