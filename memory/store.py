@@ -37,6 +37,7 @@ from sqlalchemy import (
     Connection,
     Executable,
     RowMapping,
+    Select,
     Table,
     bindparam,
     case,
@@ -278,14 +279,22 @@ def snapshot(row: UserRow) -> Profile:
 # nine tenths of a profile write). SQLAlchemy caches their compiled form by statement.
 
 
-_LOAD_USER = select(USERS).where(USERS.c.user_id == bindparam("key_user_id"))
-_LOAD_USER_FOR_UPDATE = _LOAD_USER.with_for_update()
-"""The user's row, locked (PostgreSQL's field writes)."""
-_LOAD_SCORES = (
-    select(SCORES.c.activity, *(SCORES.c[name] for name in _COUNTERS))
-    .where(SCORES.c.user_id == bindparam("key_user_id"))
-    .order_by(SCORES.c.activity)
-)
+def _load_statement(lock: bool) -> Select[Any]:
+    """The user joined with their scores, as the ORM's joined load read them; ``lock``:
+    ``FOR UPDATE OF users`` (PostgreSQL's field writes)."""
+    statement = (
+        select(
+            *USERS.columns,
+            *(SCORES.c[name].label(f"score_{name}") for name in ("activity", *_COUNTERS)),
+        )
+        .select_from(USERS.outerjoin(SCORES, USERS.c.user_id == SCORES.c.user_id))
+        .where(USERS.c.user_id == bindparam("key_user_id"))
+    )
+    return statement.with_for_update(of=USERS) if lock else statement
+
+
+_LOAD = _load_statement(lock=False)
+_LOAD_FOR_UPDATE = _load_statement(lock=True)
 _USER_EXISTS = select(USERS.c.user_id).where(USERS.c.user_id == bindparam("key_user_id"))
 _SESSION_EXISTS = select(SESSIONS.c.id).where(SESSIONS.c.id == bindparam("key_id"))
 _TOUCH = (
@@ -338,26 +347,21 @@ def _upserts(dialect: str) -> tuple[Executable, Executable] | None:
 def _load(
     connection: Connection, user_id: str, lock: bool = False
 ) -> tuple[RowMapping, dict[str, ActivityScore]]:
-    """The user's columns and scores; ProfileNotFound without the user.
-
-    Two statements, not a join (which decoded the user's columns again for every score).
-    In a write's transaction they agree: every write that moves a score first writes or
-    locks the user's row. A read outside one may see scores a moment newer than the row.
-    """
-    key = {"key_user_id": user_id}
-    user = connection.execute(_LOAD_USER_FOR_UPDATE if lock else _LOAD_USER, key).first()
-    if user is None:
+    """The user's columns and scores; ProfileNotFound without the user."""
+    rows = connection.execute(_LOAD_FOR_UPDATE if lock else _LOAD, {"key_user_id": user_id}).all()
+    if not rows:
         raise ProfileNotFound(f"no profile for user {user_id!r}")
     scores = {
-        row.activity: ActivityScore(
-            feedback_sum=row.feedback_sum,
-            feedback_count=row.feedback_count,
-            completions=row.completions,
-            cancellations=row.cancellations,
+        row.score_activity: ActivityScore(
+            feedback_sum=row.score_feedback_sum,
+            feedback_count=row.score_feedback_count,
+            completions=row.score_completions,
+            cancellations=row.score_cancellations,
         )
-        for row in connection.execute(_LOAD_SCORES, key)
+        for row in rows
+        if row.score_activity is not None
     }
-    return user._mapping, scores
+    return rows[0]._mapping, scores
 
 
 def _fields(columns: RowMapping) -> _UserFields:
