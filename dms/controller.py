@@ -88,6 +88,7 @@ from motivation import (
 log = logging.getLogger(__name__)
 
 _ActivityParts = tuple[str, str, Literal["running", "paused"], str]
+"""An ActivityState's fields taken at a tick: name, manager, status, state path."""
 _StateParts = tuple[
     str,
     int,
@@ -101,7 +102,6 @@ _StateParts = tuple[
 ]
 """:func:`_dms_state`'s arguments but the motivation (robot, tick, now, mode, user,
 activity, suspended, inputs, offline)."""
-"""An ActivityState's fields taken at a tick: name, manager, status, state path."""
 
 NO_FEEDBACK_FOR = frozenset({"menu", "notification", "sleep", "wait", "instructions"})
 """Activities after which the robot does not ask how much the user liked them."""

@@ -236,17 +236,19 @@ class MotivationModel:
         drives = state.drives.tolist()
         span = end - start
         for drive, (instant, a, b, peak, sign, wave) in zip(drives, plan.rows, strict=True):
-            if instant:
-                drive = max(0.0, drive - instant)
             if sign == 0:  # the rate may turn inside the step: split it there
-                evolved.append(evolve(drive, a, b, peak, start, end))
+                evolved.append(evolve(max(0.0, drive - instant), a, b, peak, start, end))
                 continue
             # ``evolve`` without its calls: the rate keeps its sign, so one clipped piece;
-            # the change is ``integral(a, b, peak, start, end)``, written out. A drive is
-            # in [0, 100], so only a change of the rate's sign moves it, and only towards
-            # the wall it may hit: the same floats as ``apply(drive, signed(change))``,
-            # without its six calls of ``min`` and ``max`` (a fifth of the step).
+            # the change is ``integral(a, b, peak, start, end)``, written out
             change = a * span + wave * (sin(OMEGA * (end - peak)) - sin(OMEGA * (start - peak)))
+            if instant or not LOW < drive <= HIGH:  # a caress, a drive at 0, a made-up state
+                change = max(change, 0.0) if sign > 0 else min(change, 0.0)
+                evolved.append(min(HIGH, max(LOW, max(0.0, drive - instant) + change)))
+                continue
+            # Most drives, most ticks: in (0, 100], only a change of the rate's sign moves
+            # it, and only towards the wall it may hit. The same floats as the line above,
+            # without its five calls of ``min`` and ``max`` (a fifth of the step).
             if sign > 0:
                 if change > 0.0:
                     drive = drive + change

@@ -74,6 +74,29 @@ def test_step_is_the_plain_step_bit_for_bit(data: st.DataObject) -> None:
         assert state.dominant == plain.dominant
 
 
+@settings(max_examples=200, deadline=None)
+@given(st.data())
+def test_step_is_the_plain_step_at_the_walls_and_outside_them(data: st.DataObject) -> None:
+    """Drives at 0, -0.0 and 100, states made by hand outside [0, 100] and negative
+    caresses: the step's shortcut must still give the plain step's floats, sign of zero
+    included (compared as ``repr``)."""
+    model = data.draw(models())
+    n = len(model.names)
+    edges = st.sampled_from([0.0, -0.0, 100.0, -5.0, 150.0, 1e-300])
+    drives = data.draw(st.lists(st.one_of(edges, st.floats(-50.0, 150.0)), min_size=n, max_size=n))
+    levels = np.array(data.draw(st.lists(st.floats(0.0, 1.0), min_size=n, max_size=n)))
+    state = MotivationState(np.array(drives), levels, NO_DOMINANT)
+    instant = data.draw(st.lists(st.sampled_from([0.0, 0.0, -3.0, 2.0]), min_size=n, max_size=n))
+    inputs = Stimuli(levels, np.zeros(n), np.array(instant))
+    running = data.draw(runnings(model))
+    now = data.draw(instants())
+    dt = data.draw(st.sampled_from([0.5, 3.0, 300.0]))
+    ours = model.step(state, dt, inputs, running, now)
+    plain = plain_step(model, state, dt, inputs, running, now)
+    assert [repr(v) for v in ours.drives.tolist()] == [repr(v) for v in plain.drives.tolist()]
+    assert ours.dominant == plain.dominant
+
+
 @given(st.floats(allow_nan=True, allow_infinity=True))
 def test_round3_is_round(value: float) -> None:
     ours, theirs = round3(value), round(value, 3)
