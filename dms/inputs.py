@@ -136,7 +136,8 @@ class InputBoard:
             for key in keys.INPUT_KEYS
             if key not in _EVENT_KEYS
         ]
-        """(key, slot, stale limit, optional) of the state inputs, in key order."""
+        """(key, slot, stale limit, optional) of the state inputs, in key order (they come
+        before the event inputs in ``INPUT_KEYS``, so the statuses keep its order)."""
         self._event_slots = [
             (key, self._slots[key]) for key in keys.INPUT_KEYS if key in _EVENT_KEYS
         ]

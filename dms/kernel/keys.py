@@ -27,6 +27,8 @@ STATE_INPUTS = (PERCEPTION_USER, PARAMS_ROBOT, PARAMS_ENV)
 OPTIONAL_INPUTS = (PERCEPTION_OBJECTS, ROBOT_JOINTS)
 EVENT_INPUTS = (PERCEPTION_TOUCH, PERCEPTION_SPEECH, PERCEPTION_SCREEN, REQUEST, ROBOT_FEEDBACK)
 INPUT_KEYS = STATE_INPUTS + OPTIONAL_INPUTS + EVENT_INPUTS
+"""Every input, event inputs last: ``InputBoard.take`` lists the state inputs, then the
+event inputs, so ``DmsState.inputs`` keeps this order."""
 URGENT_INPUTS = frozenset({PERCEPTION_TOUCH, PERCEPTION_SCREEN, PERCEPTION_SPEECH, REQUEST})
 """Inputs acted on at once, not at the next tick."""
 
