@@ -99,6 +99,9 @@ class SimRobot:
         self._ready_at: dict[Hashable, datetime] = {}
         self.launches = 0
         self._running: dict[str, _Running] = {}
+        self._first_end: datetime | None = None
+        """The earliest end of the running commands (None: none runs): ``poll`` looks
+        through them only from then on."""
         self._out: list[tuple[datetime, int, RobotFeedback]] = []
         self._seq = 0
         self._faults: dict[str, Fault] = {}
@@ -184,6 +187,8 @@ class SimRobot:
             seconds = max(seconds, self._aim(command, begins))
         ends = begins + timedelta(seconds=seconds)
         self._running[command.id] = _Running(command, ends)
+        if self._first_end is None or ends < self._first_end:
+            self._first_end = ends
 
     def joints(self, now: datetime) -> dict[str, float]:
         """The joint positions at ``now`` (what ``robot/joints`` reports)."""
@@ -224,10 +229,13 @@ class SimRobot:
             self._emit(now, command_id, "interrupted")
 
     def poll(self, now: datetime) -> list[RobotFeedback]:
-        ended = [key for key, running in self._running.items() if running.ends <= now]
-        for command_id in ended:
-            running = self._running.pop(command_id)
-            self._emit(running.ends, command_id, "done")
+        first = self._first_end
+        if first is not None and first <= now:
+            ended = [key for key, running in self._running.items() if running.ends <= now]
+            for command_id in ended:
+                running = self._running.pop(command_id)
+                self._emit(running.ends, command_id, "done")
+            self._first_end = min((r.ends for r in self._running.values()), default=None)
         if not self._out:
             return []  # most ticks: nothing to say (no sorting, no new lists)
         due = sorted(item for item in self._out if item[0] <= now)
