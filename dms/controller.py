@@ -94,9 +94,9 @@ _StateParts = tuple[
     int,
     datetime,
     Mode,
-    "tuple[str, bool, str, float] | None",
-    "_ActivityParts | None",
-    "_ActivityParts | None",
+    tuple[str, bool, str, float] | None,
+    _ActivityParts | None,
+    _ActivityParts | None,
     Mapping[str, Any],
     bool,
 ]
@@ -1419,7 +1419,6 @@ class Controller:
             user = (user_id, self._ready_user() == user_id, proactivity, session.p_user)
             mode = session.mode
         snapshot = self._snapshot
-        suspended = self.suspended
         parts = (
             self.robot_id,
             self._tick,
@@ -1427,7 +1426,7 @@ class Controller:
             mode,
             user,
             self._activity_state(self.current),
-            None if suspended is None else self._activity_state(suspended),
+            self._activity_state(self.suspended),
             snapshot.status if snapshot is not None else {},
             self.deps.expression.robot_offline,
         )
