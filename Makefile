@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: run test lint bench schema clean
+.PHONY: run test lint bench bench-quick schema clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -28,9 +28,13 @@ lint: $(STAMP)
 	$(BIN)/mypy dms managers activities motivation memory agenda sim
 	$(BIN)/lint-imports
 
-## bench: every benchmark, JSON on stdout
+## bench: every benchmark, JSON on stdout (stops at the first that fails)
 bench: $(STAMP)
-	@for b in bench/bench_*.py; do $(BIN)/python $$b; done
+	@set -e; for b in bench/bench_*.py; do echo "$$b" >&2; $(BIN)/python $$b; done
+
+## bench-quick: every benchmark at small sizes through the same code (a smoke test for CI)
+bench-quick: $(STAMP)
+	@set -e; for b in bench/bench_*.py; do echo "$$b --quick" >&2; $(BIN)/python $$b --quick; done
 
 schema: $(STAMP)
 	$(BIN)/dms schema docs/schema

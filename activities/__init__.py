@@ -1,4 +1,6 @@
-"""Activities as behaviors: hierarchical state machines of building blocks (seeds 000, 002).
+"""Activities as behaviors: hierarchical state machines of building blocks, as in
+the DMSL paper ("Combining Finite State Machine and Decision-Making Tools for Adaptable
+Robot Behavior") and ROS Commander.
 
 The managers use :class:`BehaviorLibrary` to create an :class:`Activity` from a behavior
 file, then start, tick, pause, resume, cancel it and deliver perception events to it.

@@ -59,11 +59,13 @@ class Activity:
         self.started_at: datetime | None = None
         self.ticks = 0
         self._stop_by: datetime | None = None
-        self._asleep: tuple[Wake, int] | None = None
-        """What the machine waits for and the ``runtime.epoch`` then: while it holds, a
-        tick of the machine would do nothing and is skipped (issue 14). Whatever reaches
-        the machine from outside (a pause, a resume, a preemption, an event taken, a stop)
-        moves the epoch, which wakes it."""
+        self._sleep: Wake | None = None
+        """What the sleeping machine waits for: until it comes, a tick of the machine
+        would do nothing and is skipped."""
+        self._sleep_epoch = 0
+        """``runtime.epoch`` when the machine fell asleep. Whatever reaches the machine
+        from outside (a pause, a resume, a preemption, an event taken, a stop) moves the
+        epoch, which wakes it."""
         self.skipped = 0
         """Ticks skipped while the machine slept (for the tests and benchmarks)."""
 
@@ -120,18 +122,24 @@ class Activity:
         return self.status
 
     def _tick_root(self, now: datetime) -> Status:
-        """Tick the machine, unless it sleeps and what it waits for has not moved."""
-        asleep = self._asleep
-        if asleep is not None and asleep[1] == self.runtime.epoch and asleep[0].holds(now):
+        """Tick the machine, unless it sleeps; after a tick that left it running, ask
+        what it waits for (the states entered in that tick have run once)."""
+        if self._asleep(now):
             self.skipped += 1
             return Status.RUNNING
-        self._asleep = None
         status = self.root.tick(now)
-        if status is Status.RUNNING:
-            wake = self.root.wake(now)  # the states entered this tick have run once
-            if wake is not None:
-                self._asleep = (wake, self.runtime.epoch)
+        self._sleep = self.root.wake(now) if status is Status.RUNNING else None
+        self._sleep_epoch = self.runtime.epoch
         return status
+
+    def _asleep(self, now: datetime) -> bool:
+        """Nothing reached the machine since it fell asleep, and what it waits for has
+        not come by ``now``."""
+        return (
+            self._sleep is not None
+            and self._sleep_epoch == self.runtime.epoch
+            and self._sleep.holds(now)
+        )
 
     def pause(self, now: datetime) -> None:
         """Freeze at any depth; commands in flight are withdrawn (history keeps the state)."""

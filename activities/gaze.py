@@ -1,6 +1,6 @@
 """Gaze and pointing for behaviors: where the robot looks while an activity runs.
 
-Seed 002 expresses motions relative to frames that perception produces, and keeps a
+ROS Commander expresses motions relative to frames that perception produces, and keeps a
 task frame's last known pose when there is no live estimate. Here the frames come from
 the activity's context (``ActivityContext.frames``: ``user``, ``face:<id>``,
 ``object:<name>``), the joint angles from :mod:`dms.kernel.gaze`, and the commands go

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 from agenda.errors import AgendaError, AgendaNotFound
 from agenda.items import PRIORITY_RANK, AgendaItem, DueItem, UpcomingItem
-from agenda.schedule import NEVER_US, Schedule, from_us
+from agenda.schedule import NEVER_US, Schedule, from_us, to_us
 
 US_PER_S = 1_000_000
 CATCH_UP_LIMIT = 10_000
@@ -47,6 +47,18 @@ class Entry:
     """The occurrence after the cursor, known once the cursor is due."""
     expire_us: int = NEVER_US
     due_item: DueItem | None = None
+
+    @classmethod
+    def of(cls, item: AgendaItem, schedule: Schedule) -> Entry:
+        """A stored item with its cursor at its stored next fire time."""
+        assert item.next_fire is not None
+        return cls(
+            item=item,
+            schedule=schedule,
+            cursor_us=to_us(item.next_fire),
+            lead_us=item.lead_s * US_PER_S,
+            grace_us=item.grace_s * US_PER_S,
+        )
 
     @property
     def due_us(self) -> int:

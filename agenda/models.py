@@ -101,7 +101,7 @@ class ClaimRow(Base):
 
     A robot that sees the item's user inserts the row before it delivers; the primary key
     lets one robot in (``INSERT ... ON CONFLICT DO NOTHING``: the other one's insert
-    changes no row). The row outlives the delivery by :data:`agenda.service.CLAIMS_KEEP_S`.
+    changes no row). The row outlives the delivery by :data:`agenda.claims.CLAIMS_KEEP_S`.
     """
 
     __tablename__ = "agenda_claims"

@@ -1,5 +1,8 @@
 """The agenda: events and reminders per user, stored in the daemon's database.
 
+Over 600 lines: every method that takes the agenda's two locks is here, so that their
+order can be checked in one file.
+
 The controller calls :meth:`Agenda.due` on every tick; it answers from the
 in-memory :class:`agenda.index.AgendaIndex`, without SQL. Deliveries are written at
 once (:meth:`Agenda.delivered`); misses are queued and written within
@@ -7,31 +10,32 @@ once (:meth:`Agenda.delivered`); misses are queued and written within
 A miss that is lost in a crash is found again on restart, because the item's cursor
 in the database moves only when its occurrence is logged.
 
-Every delivery and miss is also appended to a journal (the daemon's, on by default
-with ``background=True``: :func:`memory.db.side_file` ``(url, "agenda-spool")``, a
-:class:`memory.spool.Spool`) and ``fsync``'d before the call that records it returns; the
-background thread writes it to the database and marks it done. A kill -9 while the write
-waits (another process holds SQLite's lock, PostgreSQL is away) loses nothing: the next
-start replays the journal into the database before it computes what is due, so an
-occurrence delivered before the crash is never delivered again.
+Deliveries and misses go through the same background writer as the profile store's
+(:class:`memory.writer.Writer`: queue, backoff, spool, quarantine, reports once per
+outage). Its spool is the agenda's journal (the daemon's, on by default with
+``background=True``: :func:`agenda.writer.journal_path`): every delivery and miss is in
+it, ``fsync``'d, before the call that records it returns, and the writer marks it done
+once the database has it. A kill -9 while the write waits (another process holds
+SQLite's lock, PostgreSQL is away) loses nothing: the next start replays the journal into
+the database before it computes what is due, so an occurrence delivered before the crash
+is never delivered again. A record the database refuses for good is quarantined.
 
 With ``background=True`` (the daemon) the calls from the tick (:meth:`Agenda.due`,
-:meth:`Agenda.delivered`, :meth:`Agenda.user_perceived`) never touch the database: their
-writes and reads run on one background thread, in order. Database I/O never holds the
-index's lock (``_lock``), only ``_io_lock``, which serializes it; so a locked or absent
-database never stalls the tick. Lock order: ``_io_lock`` before ``_lock``, never the
-other way; ``_journal_lock`` comes after both.
+:meth:`Agenda.delivered`, :meth:`Agenda.user_perceived`) never touch the database: the
+writer's thread writes the records, one background thread runs the reads and claims, in
+order. Database I/O never holds the index's lock (``_lock``), only ``_io_lock``, which
+serializes it; so a locked or absent database never stalls the tick. Lock order: the
+writer's, then ``_io_lock``, then ``_lock``, never the other way (the writer takes
+nothing of the agenda while it holds its own lock).
 
-Several robots share one agenda (docs/fleet.md). An occurrence is *claimed* before
-:meth:`Agenda.due` returns it: a row in ``agenda_claims`` keyed by (item, fire time),
-inserted with ``ON CONFLICT DO NOTHING``, so of two robots that see the user in the same
-second one gets it and the other never returns it (it records it missed at the end of
-the grace time if nobody delivered it; a delivery wins over such a miss in the log).
-Without the database no claim can be made: on a server database the occurrence waits
-(it is claimed when the database is back, or missed), on a SQLite file, which only robots
-on one machine share, it is delivered anyway (``offline_delivery``). Items added
-elsewhere (another robot, the command line) are polled for every :data:`POLL_S` of the
-caller's clock, and the whole agenda is reloaded every :data:`RELOAD_S`.
+Several robots share one agenda (docs/fleet.md). An occurrence is claimed before
+:meth:`Agenda.due` returns it (:mod:`agenda.claims`), so of two robots that see the user
+in the same second only one delivers it. Without the database no claim can be made: on a
+server database the occurrence waits (it is claimed when the database is back, or
+missed), on a SQLite file, which only robots on one machine share, it is delivered anyway
+(``offline_delivery``). Items added elsewhere (another robot, the command line) are polled
+for every :data:`POLL_S` of the caller's clock, and the whole agenda is reloaded every
+:data:`RELOAD_S`.
 """
 
 from __future__ import annotations
@@ -42,57 +46,28 @@ import socket
 import threading
 import uuid
 from collections.abc import Callable, Sequence
-from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import wait as wait_for
-from dataclasses import dataclass
-from datetime import UTC, datetime, timedelta
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import (
-    Connection,
-    Engine,
-    bindparam,
-    delete,
-    insert,
-    inspect,
-    make_url,
-    select,
-    update,
-)
-from sqlalchemy.dialects import postgresql, sqlite
-from sqlalchemy.exc import IntegrityError, SQLAlchemyError
-from sqlalchemy.orm import Session, sessionmaker
+from sqlalchemy import Engine, delete, select
+from sqlalchemy.exc import SQLAlchemyError
+from sqlalchemy.orm import sessionmaker
 
-from agenda import migrations
+from agenda import claims, writer
+from agenda.claims import CLAIM_RETRY_S, CLAIM_WAIT_S, CLAIMS_KEEP_S, MINE, PENDING, RETRY, Claims
 from agenda.errors import AgendaError, AgendaNotFound
 from agenda.index import US_PER_S, AgendaIndex, Entry, MissedRun
-from agenda.items import (
-    AgendaItem,
-    DueItem,
-    ItemKind,
-    ItemSpec,
-    Occurrence,
-    Outcome,
-    Priority,
-    UpcomingItem,
-)
-from agenda.models import ClaimRow, ItemRow, OccurrenceRow, UtcDateTime
-from agenda.schedule import (
-    MAX_EVERY_S,
-    Schedule,
-    ScheduleKind,
-    build,
-    from_us,
-    localize,
-    to_us,
-    zone,
-)
-from dms.kernel.activity_names import ACTIVITIES
-from dms.kernel.ids import InvalidIdentifier, check_identifier
-from memory.db import as_url, make_engine, side_file
-from memory.spool import Spool
-from memory.store import register_user_data
+from agenda.items import AgendaItem, DueItem, ItemSpec, Occurrence, Outcome, UpcomingItem
+from agenda.models import ClaimRow, ItemRow, OccurrenceRow
+from agenda.rows import Schedules, item_of, occurrence_of, one_line, prepare_schema, validate
+from agenda.schedule import from_us, to_us
+from agenda.user_data import USER_DATA
+from agenda.writer import journal_path
+from memory.db import make_engine
+from memory.watch import sqlite_file
+from memory.writer import REPLAY_BATCH, Writer, WriterHealth
 
 log = logging.getLogger(__name__)
 
@@ -101,57 +76,21 @@ FLUSH_AFTER_S = 300
 RETRY_AFTER_S = 5
 BACKGROUND_BUSY_TIMEOUT_S = 1.0
 """SQLite lock wait of the background thread: it retries later rather than wait long."""
-MAX_LEAD_S = 86400
-MAX_GRACE_S = 7 * 86400
-MAX_TEXT = 500
-
-
-CLAIM_WAIT_S = 0.05
-"""How long :meth:`Agenda.due` waits for a claim made off the tick (``background``):
-enough for a healthy database, so the item comes out in the same tick; else it comes
-out of a later one."""
-CLAIM_RETRY_S = 2
-"""Between claims of one occurrence while the database cannot be reached."""
 POLL_S = 10
 """Between reads of items added since the last one (by another robot, the command line)."""
 POLL_OVERLAP = 100
 """Ids below the highest seen that a poll reads again (ids committed out of order)."""
 RELOAD_S = 300
 """Between reloads of every item (items removed elsewhere, cursors moved elsewhere)."""
-CLAIMS_KEEP_S = MAX_GRACE_S + MAX_LEAD_S + 86400
-"""How long a claim is kept after its fire time: past it the occurrence is settled."""
 
-_MINE, _THEIRS, _PENDING, _RETRY = "mine", "theirs", "pending", "retry"
-
-JOURNAL_SUFFIX = "agenda-spool"
-"""The journal's file: ``<db file>.agenda-spool``, or in the state folder for a server."""
-
-
-@dataclass(frozen=True, slots=True)
-class _Record:
-    """One delivery or miss waiting for the database: its log row and the item's new cursor.
-
-    ``entry`` is JSON-able (it is what the journal holds); ``journaled`` says whether it
-    is in the journal, so that a flush marks exactly those done.
-    """
-
-    item_id: int
-    entry: dict[str, Any]
-    journaled: bool
-
-
-def journal_path(url: str, owner: str | None = None) -> Path | None:
-    """Where the agenda's journal for ``url`` lives (``owner``'s own: a robot id); None
-    for an in-memory database."""
-    parsed = make_url(as_url(url))  # a plain file path (``--db dms.db``) too
-    if parsed.get_backend_name() == "sqlite" and parsed.database in (None, "", ":memory:"):
-        return None
-    return side_file(url, JOURNAL_SUFFIX, owner)
-
-
-def _one_line(error: BaseException) -> str:
-    text = str(getattr(error, "orig", None) or error)
-    return text.splitlines()[0] if text else type(error).__name__
+__all__ = [
+    "CLAIMS_KEEP_S",
+    "CLAIM_RETRY_S",
+    "CLAIM_WAIT_S",
+    "POLL_S",
+    "Agenda",
+    "journal_path",
+]
 
 
 class Agenda:
@@ -167,6 +106,8 @@ class Agenda:
         offline_delivery: bool | None = None,
         poll_s: float | None = POLL_S,
         unseen_misses: bool | None = None,
+        report: Callable[[str, str], None] | None = None,
+        spool_dir: Path | None = None,
     ) -> None:
         """Open the agenda at ``url``, replay its journal and load every item.
 
@@ -183,32 +124,31 @@ class Agenda:
         (default: on a SQLite file only; in a fleet each robot would write every miss of
         every user again: the robot that next sees the user records them, from the
         cursor in the database).
+
+        ``report``: where the writer's lines go (the daemon's ``dms/errors``; default: the
+        log); ``spool_dir``: a folder on another filesystem for the journal when the one
+        beside the database cannot be written.
         """
         self.claimer = claimer or f"{socket.gethostname()}-{os.getpid()}-{uuid.uuid4().hex[:8]}"
-        self._claims: dict[tuple[int, int], tuple[str, int]] = {}
+        self._claims = Claims()
         self._seen: dict[str, int] = {}
         """User -> when this robot last saw them (perceived, or present at ``due``)."""
-        """(item, fire time) -> (state, retry time): what this robot knows of its claims."""
         self._poll_us = None if poll_s is None else round(poll_s * US_PER_S)
         self._poll_at_us: int | None = None
         self._reload_at_us: int | None = None
         self._high_id = 0
-        self.claims_lost = 0
-        """Occurrences another robot claimed first."""
         self._user_exists = user_exists
+        # Lock order: _io_lock before _lock, never the other way. _lock guards the
+        # in-memory state (index, queue, claims, seen users) and is held only briefly;
+        # _io_lock serializes the database work, which never holds _lock, so a locked or
+        # absent database never stalls the tick.
         self._lock = threading.RLock()
         self._io_lock = threading.Lock()
-        self._journal_lock = threading.Lock()
-        self._journal: Spool | None = None
-        self._jobs = (
-            ThreadPoolExecutor(max_workers=1, thread_name_prefix="dms-agenda")
-            if background
-            else None
-        )
+        self._background = writer.Background(background)
         self._index = AgendaIndex()
-        self._queue: list[_Record] = []
         self._flush_at_us: int | None = None
-        self._schedules: dict[tuple[str, str, str, datetime | None], Schedule] = {}
+        """When the records waiting are written (without a writer thread: the caller's clock)."""
+        self._schedules = Schedules()
         self.problems: list[str] = []
         """Stored items that could not be loaded (bad spec, unknown zone), one line each."""
         try:
@@ -216,148 +156,112 @@ class Agenda:
                 url, BACKGROUND_BUSY_TIMEOUT_S if background else None
             )
         except (SQLAlchemyError, OSError) as error:
-            raise AgendaError(f"cannot open the agenda at {url}: {_one_line(error)}") from None
+            raise AgendaError(f"cannot open the agenda at {url}: {one_line(error)}") from None
+        self._journaled = background if journal is None else journal
+        self._writer: Writer[dict[str, Any]] = Writer(
+            self._write,
+            writer.CODEC,
+            writer.journal_path(url, claimer) if self._journaled else None,
+            writer.quarantine_path(url, claimer) if self._journaled else None,
+            report or _log_report,
+            name="agenda writer",
+            report_key="agenda",
+            threaded=background,
+            inline=False,
+            journal=self._journaled,
+            batch=REPLAY_BATCH,
+            spool_dir=spool_dir,
+            database_file=sqlite_file(url) if background else None,
+        )
         try:
-            self._prepare_schema()
+            prepare_schema(self._engine)
             self._sessions = sessionmaker(self._engine, expire_on_commit=False)
             local = self._engine.dialect.name == "sqlite"
             self._offline_delivery = local if offline_delivery is None else offline_delivery
             self._unseen_misses = local if unseen_misses is None else unseen_misses
-            path = (
-                journal_path(url, claimer) if (background if journal is None else journal) else None
-            )
-            if path is not None:
-                self._journal = Spool(path)
-                self._replay_journal()
+            self._replay_journal()
             self._load(None)
             self._apply_queued()
         except (SQLAlchemyError, OSError) as error:
-            self._close_journal()
+            self._writer.close()
             self._engine.dispose()
-            raise AgendaError(f"cannot open the agenda at {url}: {_one_line(error)}") from None
+            raise AgendaError(f"cannot open the agenda at {url}: {one_line(error)}") from None
         except AgendaError:
-            self._close_journal()
+            self._writer.close()
             self._engine.dispose()
             raise
+        self._writer.start()
 
     def _replay_journal(self) -> None:
         """At start: write what the journal holds (a crash's or an outage's), in order.
 
         Runs before the items are loaded, so their cursors already count these records.
         If the database will not take them now (another process holds its lock), they
-        stay queued and journaled, :meth:`_apply_queued` moves the cursors in memory, and
-        the next flush writes them.
+        stay journaled, :meth:`_apply_queued` moves the cursors in memory, and the writer
+        writes them later.
         """
-        assert self._journal is not None
-        entries = list(self._journal.pending)
-        if not entries:
+        count = self._writer.pending
+        if not count:
             return
-        self._queue = [_Record(int(e["item_id"]), e, True) for e in entries]
         try:
             self._flush()
         except AgendaError as error:
-            log.warning("%s; %d journaled record(s) kept for later", error, len(entries))
-            self._flush_at_us = 0
+            log.warning("%s; %d journaled record(s) kept for later", error, count)
+            self._retry_later(0)
             return
-        log.info("agenda: %d journaled record(s) replayed into the database", len(entries))
+        log.info("agenda: %d journaled record(s) replayed into the database", count)
 
     def _apply_queued(self) -> None:
-        """Move the loaded items' cursors past the records still queued (journal replay)."""
+        """Move the loaded items' cursors past the records still waiting (journal replay)."""
         with self._lock:
-            for record in self._queue:
-                if record.item_id in self._index.entries:
-                    cursor = record.entry["cursor_us"]
-                    self._index.delivered(record.item_id, None if cursor is None else int(cursor))
-
-    def _close_journal(self) -> None:
-        with self._journal_lock:
-            if self._journal is not None:
-                self._journal.close()
-                self._journal = None
+            for entry in self._writer.waiting():
+                item_id = int(entry["item_id"])
+                if item_id in self._index.entries:
+                    cursor = entry["cursor_us"]
+                    self._index.delivered(item_id, None if cursor is None else int(cursor))
 
     def _enqueue(self, entries: list[dict[str, Any]]) -> None:
-        """Queue records for the database, journaled first (``_lock`` held: keeps the order).
+        """Hand records to the writer (``_lock`` held: keeps the order); with a journal
+        they are in it, fsync'd, when this returns (or, when no spool can be written,
+        reported and kept in memory)."""
+        self._writer.submit_all(entries)
 
-        A journal that cannot be written (disk full) is reported and the records are kept
-        in memory only, as without a journal.
-        """
-        journaled = False
-        with self._journal_lock:
-            if self._journal is not None:
-                try:
-                    self._journal.append(entries)
-                    journaled = True
-                except OSError as error:
-                    log.error(
-                        "agenda: cannot write the journal %s (%s); %d record(s) in memory only",
-                        self._journal.path,
-                        error,
-                        len(entries),
-                    )
-        self._queue.extend(_Record(int(e["item_id"]), e, journaled) for e in entries)
+    def _write(self, entries: list[dict[str, Any]]) -> list[None]:
+        """The writer's apply: log ``entries`` in one transaction, and forget the items
+        removed or erased by another process."""
+        with self._io_lock:
+            with self._engine.begin() as connection:
+                gone = writer.write_records(connection, entries)
+            with self._lock:
+                for item_id in gone:
+                    self._index.drop(item_id)
+        return [None] * len(entries)
 
-    def _offload(self, job: Callable[[], None]) -> Future[None] | None:
-        """Run ``job`` on the background thread, or at once without one (never under _lock).
+    def _waiting_items(self) -> set[int]:
+        """The items with a record not yet in the database (their stored cursor is older)."""
+        return {int(entry["item_id"]) for entry in self._writer.waiting()}
 
-        Returns the background job's future (None when it ran at once or was refused)."""
-        if self._jobs is None:
-            job()
-            return None
-        try:
-            return self._jobs.submit(self._guarded, job)
-        except RuntimeError:  # shut down: the caller is closing, close() flushes
-            log.warning("agenda: closing, %s left to close()", getattr(job, "__name__", job))
-            return None
-
-    @staticmethod
-    def _guarded(job: Callable[[], None]) -> None:
-        try:
-            job()
-        except Exception:  # a background job must not die silently; the next one retries
-            log.exception("agenda: background database work failed")
-
-    # ------------------------------------------------------------------ schema
-
-    def _prepare_schema(self) -> None:
-        head = migrations.head()
-        with self._engine.connect() as connection:
-            revision = migrations.current(connection)
-            installed = migrations.installed(connection)
-            tables = set(inspect(connection).get_table_names())
-        if revision == head:
-            missing = [
-                name
-                for name in (
-                    ItemRow.__tablename__,
-                    OccurrenceRow.__tablename__,
-                    ClaimRow.__tablename__,
-                )
-            ]
-            missing = [name for name in missing if name not in tables]
-            if missing:
-                raise AgendaError(
-                    f"the database is damaged: the agenda's table {', '.join(missing)} is "
-                    "missing; restore a backup, or run `dms db upgrade` to recreate it empty"
-                )
-            return
-        if revision is None and not installed:
-            try:
-                migrations.upgrade_engine(self._engine)
-            except SQLAlchemyError:
-                # Another process may have created it at the same time.
-                with self._engine.connect() as connection:
-                    if migrations.current(connection) != head:
-                        raise
-            return
-        raise AgendaError(
-            f"the agenda's tables are at revision {revision or 'none'}, this dms needs "
-            f"{head}: run `dms db upgrade`"
-        )
+    def _retry_later(self, at_us: int) -> None:
+        """Without a writer thread, flush again at ``at_us`` of the caller's clock (the
+        thread retries by itself, with backoff)."""
+        if not self._writer.threaded:
+            with self._lock:
+                self._flush_at_us = at_us
 
     @property
     def engine(self) -> Engine:
         """The agenda's database engine (the simulator sets its throw-away file's sync)."""
         return self._engine
+
+    @property
+    def health(self) -> WriterHealth:
+        """Whether the agenda's records wait for the database, how many and why."""
+        return self._writer.health
+
+    @property
+    def claims_lost(self) -> int:
+        """Occurrences another robot claimed first."""
+        return self._claims.lost
 
     def close(self) -> None:
         """Finish the background work, write what is queued and release the database.
@@ -365,37 +269,36 @@ class Agenda:
         With a journal, what the database will not take now stays journaled for the next
         start (one log line says how much); without one, AgendaError.
         """
-        if self._jobs is not None:
-            self._jobs.shutdown(wait=True)
+        self._background.shutdown()
         try:
             self._flush()
         except AgendaError as error:
-            with self._journal_lock:
-                kept = 0 if self._journal is None else len(self._journal)
-            if not kept:
+            if not self._journaled:
                 raise
             log.warning(
-                "%s; %d agenda record(s) kept in the journal for the next start", error, kept
+                "%s; %d agenda record(s) kept in the journal for the next start",
+                error,
+                self._writer.pending,
             )
         finally:
-            self._close_journal()
+            self._writer.close()
             self._engine.dispose()
 
     # ------------------------------------------------------------------ management
 
     def add(self, spec: ItemSpec, now: datetime) -> AgendaItem:
         """Store a new item; AgendaError (one line, nothing stored) when it is invalid."""
-        row, schedule = self._validate(spec, now)
+        row, schedule = validate(spec, now, self._user_exists)
         with self._io_lock:
             try:
                 with self._sessions.begin() as session:
                     session.add(row)
                     session.flush()
-                    item = _item(row)
+                    item = item_of(row)
             except SQLAlchemyError as error:
-                raise AgendaError(f"cannot store the agenda item: {_one_line(error)}") from None
+                raise AgendaError(f"cannot store the agenda item: {one_line(error)}") from None
             with self._lock:
-                self._index.put(self._entry(item, schedule))
+                self._index.put(Entry.of(item, schedule))
                 self._high_id = max(self._high_id, item.item_id)
             return item
 
@@ -405,7 +308,7 @@ class Agenda:
             row = session.get(ItemRow, item_id)
             if row is None:
                 raise AgendaNotFound(f"no agenda item {item_id}")
-            return _item(row)
+            return item_of(row)
 
     def remove(self, item_id: int) -> None:
         """Delete item ``item_id`` (its log stays); AgendaNotFound if there is none."""
@@ -416,7 +319,7 @@ class Agenda:
                     deleted = session.execute(delete(ItemRow).where(ItemRow.id == item_id))
             except SQLAlchemyError as error:
                 raise AgendaError(
-                    f"cannot remove agenda item {item_id}: {_one_line(error)}"
+                    f"cannot remove agenda item {item_id}: {one_line(error)}"
                 ) from None
             with self._lock:
                 known = self._index.drop(item_id)
@@ -452,7 +355,7 @@ class Agenda:
             with self._lock:
                 self._advance(to_us(now), down=False)
 
-        self._offload(perceive)
+        self._background.offload(perceive)
 
     def recover(self, now: datetime) -> list[DueItem]:
         """At daemon start: settle what fell due while it was down.
@@ -468,11 +371,10 @@ class Agenda:
         try:
             self._flush()
         except AgendaError as error:
-            if self._journal is None:
+            if not self._journaled:
                 raise
             log.warning("%s; journaled, retrying in %s s", error, RETRY_AFTER_S)
-            with self._lock:
-                self._flush_at_us = to_us(now) + RETRY_AFTER_S * US_PER_S
+            self._retry_later(to_us(now) + RETRY_AFTER_S * US_PER_S)
         with self._lock:
             return self._index.all_waiting()
 
@@ -487,6 +389,7 @@ class Agenda:
         """
         now_us = to_us(now)
         flush = poll = False
+        self._writer.poll(now_us / US_PER_S)  # reports what opening the journal found
         with self._lock:
             if self._index.has_work(now_us):
                 self._advance(now_us, down=False)
@@ -502,15 +405,15 @@ class Agenda:
             if present_user is not None and now_us >= self._seen.get(present_user, 0):
                 self._seen[present_user] = now_us
             waiting = [] if present_user is None else self._index.waiting_for(present_user)
-            to_claim = [item for item in waiting if self._needs_claim(item, now_us)]
+            to_claim = [item for item in waiting if self._claims.needs_claim(item, now_us)]
             for item in to_claim:
-                self._claims[_key(item)] = (_PENDING, 0)
+                self._claims.set(item, PENDING)
         if flush:
-            self._offload(self._flush_or_retry(now_us))
+            self._background.offload(self._flush_or_retry(now_us))
         if poll:
-            self._offload(self._poll(now_us))
+            self._background.offload(self._poll(now_us))
         if to_claim:
-            future = self._offload(self._claim_job(to_claim, now_us))
+            future = self._background.offload(self._claim_job(to_claim, now_us))
             if future is not None:
                 wait_for([future], timeout=CLAIM_WAIT_S)
         if not waiting:
@@ -518,21 +421,13 @@ class Agenda:
         assert present_user is not None
         with self._lock:
             return [
-                item
-                for item in self._index.waiting_for(present_user)
-                if self._claims.get(_key(item), ("", 0))[0] == _MINE
+                item for item in self._index.waiting_for(present_user) if self._claims.is_mine(item)
             ]
 
     def wait_idle(self, timeout: float) -> bool:
-        """Wait until the background work queued so far is done (tests, benchmarks)."""
-        if self._jobs is None:
-            return True
-        try:
-            future = self._jobs.submit(lambda: None)
-        except RuntimeError:
-            return True
-        done, _ = wait_for([future], timeout=timeout)
-        return bool(done)
+        """Wait until the background work queued so far is done and every record is
+        written (tests, benchmarks)."""
+        return self._background.wait_idle(timeout) and self._writer.wait_idle(timeout)
 
     def claim(self, item: DueItem, now: datetime) -> bool:
         """Claim one occurrence for this robot now, in the database; whether it is ours.
@@ -543,12 +438,7 @@ class Agenda:
         now_us = to_us(now)
         self._claim_job([item], now_us)()
         with self._lock:
-            return self._claims.get(_key(item), ("", 0))[0] == _MINE
-
-    def _needs_claim(self, item: DueItem, now_us: int) -> bool:
-        """``_lock`` held: whether ``item`` must be claimed (again) now."""
-        state, retry_us = self._claims.get(_key(item), ("", 0))
-        return state == "" or (state == _RETRY and now_us >= retry_us)
+            return self._claims.is_mine(item)
 
     def _claim_job(self, items: list[DueItem], now_us: int) -> Callable[[], None]:
         """A job that claims ``items`` in one transaction and notes the outcomes."""
@@ -556,31 +446,34 @@ class Agenda:
         def claim() -> None:
             try:
                 with self._io_lock, self._engine.begin() as connection:
-                    outcomes = [_claim(connection, item, self.claimer, now_us) for item in items]
+                    outcomes = [
+                        claims.claim_occurrence(connection, item, self.claimer, now_us)
+                        for item in items
+                    ]
             except SQLAlchemyError as error:
                 offline = self._offline_delivery
                 log.warning(
                     "agenda: cannot claim %s: %s; %s",
                     ", ".join(f"item {item.item_id}" for item in items),
-                    _one_line(error),
+                    one_line(error),
                     "delivering without a claim"
                     if offline
                     else f"it waits, retrying in {CLAIM_RETRY_S} s",
                 )
-                state = (_MINE, 0) if offline else (_RETRY, now_us + CLAIM_RETRY_S * US_PER_S)
+                state, retry_us = (
+                    (MINE, 0) if offline else (RETRY, now_us + CLAIM_RETRY_S * US_PER_S)
+                )
                 with self._lock:
                     for item in items:
-                        self._claims[_key(item)] = state
+                        self._claims.set(item, state, retry_us)
                 return
             with self._lock:
                 for item, outcome in zip(items, outcomes, strict=True):
                     if outcome is None:  # removed elsewhere
-                        self._claims.pop(_key(item), None)
+                        self._claims.drop(claims.key(item))
                         self._index.drop(item.item_id)
                         continue
-                    if outcome == _THEIRS and self._claims.get(_key(item), ("", 0))[0] != _THEIRS:
-                        self.claims_lost += 1
-                    self._claims[_key(item)] = (outcome, 0)
+                    self._claims.note(item, outcome)
 
         return claim
 
@@ -605,7 +498,7 @@ class Agenda:
                 with self._lock:
                     self._advance(now_us, down=False)
             except SQLAlchemyError as error:
-                log.warning("agenda: cannot read new items: %s", _one_line(error))
+                log.warning("agenda: cannot read new items: %s", one_line(error))
 
         return poll
 
@@ -622,7 +515,7 @@ class Agenda:
             with self._engine.connect() as connection:
                 cursors = {int(row.id): to_us(row.next_fire) for row in connection.execute(query)}
             with self._lock:
-                queued = {record.item_id for record in self._queue}
+                queued = self._waiting_items()
                 entries = self._index.entries
                 wanted = [
                     item_id
@@ -639,7 +532,7 @@ class Agenda:
                 if full:
                     for item_id in [i for i in self._index.entries if i not in cursors]:
                         self._index.drop(item_id)
-                    self._forget_claims()
+                    self._claims.forget_closed(self._index.entries)
 
     def delivered(self, item: DueItem, now: datetime) -> None:
         """``item`` was started or spoken: log it and schedule its next occurrence.
@@ -655,11 +548,12 @@ class Agenda:
             cursor = self._index.next_after_delivery(item.item_id, fire_us)
             stored = self._index.entries[item.item_id].item
             self._index.delivered(item.item_id, cursor)
-            self._claims.pop((item.item_id, fire_us), None)
-            entry = _delivery_entry(stored, fire_us, now_us, cursor)
+            self._claims.drop((item.item_id, fire_us))
+            entry = writer.delivery_entry(stored, fire_us, now_us, cursor)
             entry["claimed_by"] = self.claimer
             self._enqueue([entry])
-        self._offload(self._flush_or_retry(now_us))
+        if not self._writer.threaded:
+            self._background.offload(self._flush_or_retry(now_us))
 
     def _flush_or_retry(self, now_us: int) -> Callable[[], None]:
         """A job that flushes the queue; if the database fails, due() retries it later."""
@@ -669,9 +563,7 @@ class Agenda:
                 self._flush()
             except AgendaError as error:
                 log.warning("%s; retrying in %s s", error, RETRY_AFTER_S)
-                with self._lock:
-                    if self._queue:
-                        self._flush_at_us = now_us + RETRY_AFTER_S * US_PER_S
+                self._retry_later(now_us + RETRY_AFTER_S * US_PER_S)
 
         return flush
 
@@ -690,7 +582,7 @@ class Agenda:
         if outcome is not None:
             query = query.where(OccurrenceRow.outcome == str(outcome))
         with self._sessions() as session:
-            return [_occurrence(row) for row in session.scalars(query)]
+            return [occurrence_of(row) for row in session.scalars(query)]
 
     # ------------------------------------------------------------------ privacy
 
@@ -715,7 +607,7 @@ class Agenda:
                     USER_DATA.erase_user(session, user_id)
             except SQLAlchemyError as error:
                 raise AgendaError(
-                    f"cannot erase the agenda of {user_id}: {_one_line(error)}"
+                    f"cannot erase the agenda of {user_id}: {one_line(error)}"
                 ) from None
             with self._lock:
                 for item_id in self._index.user_items(user_id):
@@ -728,53 +620,29 @@ class Agenda:
         if runs and not self._unseen_misses:
             runs = [run for run in runs if self._saw(run)]
         if runs:
-            self._enqueue([_miss_entry(run) for run in runs])
-            if self._flush_at_us is None:
+            self._enqueue([writer.miss_entry(run) for run in runs])
+            if self._flush_at_us is None and not self._writer.threaded:
                 self._flush_at_us = now_us + FLUSH_AFTER_S * US_PER_S
-            self._forget_claims()
+            self._claims.forget_closed(self._index.entries)
 
     def _saw(self, run: MissedRun) -> bool:
         """``_lock`` held: whether this robot saw the run's user since it fell due."""
         due_us = run.first_us - run.item.lead_s * US_PER_S
         return self._seen.get(run.item.user_id, -1) >= due_us
 
-    def _forget_claims(self) -> None:
-        """``_lock`` held: drop what we know of claims of occurrences no longer open."""
-        entries = self._index.entries
-        for key in [
-            key
-            for key in self._claims
-            if (entry := entries.get(key[0])) is None or entry.cursor_us != key[1]
-        ]:
-            del self._claims[key]
-
     def _flush(self) -> None:
-        """Write queued misses and deliveries, each with its item's new cursor.
+        """Write the records waiting (misses and deliveries, each with its item's new
+        cursor) now, in this thread; AgendaError when the database will not take them.
 
         The database is written without the index's lock: the tick can go on meanwhile
         (what it queues then waits for the next flush). Never call it holding ``_lock``.
         """
-        with self._io_lock:
-            with self._lock:
-                records = list(self._queue)
-                if not records:
-                    self._flush_at_us = None
-                    return
-            try:
-                with self._engine.begin() as connection:
-                    gone = _write(connection, [record.entry for record in records])
-            except SQLAlchemyError as error:
-                raise AgendaError(f"cannot write the agenda's log: {_one_line(error)}") from None
-            with self._lock:
-                del self._queue[: len(records)]
-                for item_id in gone:  # removed or erased by another process: forget it here
-                    self._index.drop(item_id)
-                if not self._queue:
-                    self._flush_at_us = None
-            journaled = sum(record.journaled for record in records)
-            with self._journal_lock:
-                if journaled and self._journal is not None:
-                    self._journal.done(journaled)
+        failure = self._writer.flush()
+        if failure is not None:
+            raise AgendaError(f"cannot write the agenda's log: {one_line(failure)}")
+        with self._lock:
+            if not self._writer.pending:
+                self._flush_at_us = None
 
     def _load(self, user_id: str | None) -> None:
         """Bring the index in line with the database, for one user or everyone.
@@ -795,7 +663,7 @@ class Agenda:
 
         An item with a record still queued keeps its cursor here: the row is older.
         """
-        queued = {record.item_id for record in self._queue}
+        queued = self._waiting_items()
         seen: set[int] = set()
         for row in rows:
             seen.add(row.id)
@@ -810,16 +678,16 @@ class Agenda:
             ):
                 continue
             try:
-                item = _item(row)
-                schedule = self._schedule(item.schedule, item.spec, item.tz, row.anchor)
+                item = item_of(row)
+                schedule = self._schedules.of(row)
             except AgendaError as error:
                 problem = f"agenda item {row.id} cannot be loaded: {error}"
                 if problem not in self.problems:
                     self.problems.append(problem)
                     log.warning("%s", problem)
                 continue
-            self._index.put(self._entry(item, schedule))
-        self._forget_claims()
+            self._index.put(Entry.of(item, schedule))
+        self._claims.forget_closed(self._index.entries)
         if not drop:
             return
         stale = (
@@ -829,446 +697,7 @@ class Agenda:
             if item_id not in seen:
                 self._index.drop(item_id)
 
-    def _entry(self, item: AgendaItem, schedule: Schedule) -> Entry:
-        assert item.next_fire is not None
-        return Entry(
-            item=item,
-            schedule=schedule,
-            cursor_us=to_us(item.next_fire),
-            lead_us=item.lead_s * US_PER_S,
-            grace_us=item.grace_s * US_PER_S,
-        )
 
-    def _schedule(self, kind: str, spec: str, tz: str, anchor: datetime | None) -> Schedule:
-        key = (kind, spec, tz, anchor)
-        schedule = self._schedules.get(key)
-        if schedule is None:
-            try:
-                schedule_kind = ScheduleKind(kind)
-            except ValueError:
-                raise AgendaError(f"unknown schedule {kind!r}") from None
-            schedule = build(schedule_kind, spec, tz, anchor)
-            self._schedules[key] = schedule
-        return schedule
-
-    def _validate(self, spec: ItemSpec, now: datetime) -> tuple[ItemRow, Schedule]:
-        """The row to store for ``spec``, or AgendaError naming what is wrong."""
-        if now.tzinfo is None:
-            raise AgendaError("now must be timezone-aware")
-        user_id = spec.user_id
-        try:
-            if check_identifier(user_id, "user_id") != user_id:
-                raise InvalidIdentifier("user_id: has white space around it")
-        except InvalidIdentifier as error:
-            raise AgendaError(f"invalid user id {user_id!r:.80}: {error}") from None
-        activity, text = spec.activity, spec.text
-        if spec.kind == "event":
-            if not activity:
-                raise AgendaError("an event needs an activity")
-            if activity not in ACTIVITIES:
-                raise AgendaError(
-                    f"unknown activity {activity!r} (one of: {', '.join(ACTIVITIES)})"
-                )
-            if text is not None:
-                raise AgendaError("an event runs an activity and has no text")
-        else:
-            if activity is not None:
-                raise AgendaError("a reminder has a text, not an activity")
-            text = (text or "").strip()
-            if not text:
-                raise AgendaError("a reminder needs a text")
-            if len(text) > MAX_TEXT:
-                raise AgendaError(f"a reminder's text is at most {MAX_TEXT} characters")
-        chosen = [name for name in ("at", "cron", "every") if getattr(spec, name) is not None]
-        if len(chosen) != 1:
-            raise AgendaError("give exactly one of at, cron or every")
-        if not 0 <= spec.lead_s <= MAX_LEAD_S:
-            raise AgendaError(f"lead_s must be between 0 and {MAX_LEAD_S}")
-        if not 0 <= spec.grace_s <= MAX_GRACE_S:
-            raise AgendaError(f"grace_s must be between 0 and {MAX_GRACE_S}")
-        tz = zone(spec.tz)
-        anchor: datetime | None = None
-        if spec.at is not None:
-            kind = ScheduleKind.AT
-            fire = localize(spec.at, tz)
-            if fire + timedelta(seconds=spec.grace_s) < now:
-                raise AgendaError(f"{spec.at.isoformat()} is in the past")
-            text_spec = fire.isoformat()
-        elif spec.cron is not None:
-            kind = ScheduleKind.CRON
-            text_spec = " ".join(spec.cron.split())
-        else:
-            kind = ScheduleKind.EVERY
-            every = spec.every
-            assert every is not None
-            if not 1 <= every <= MAX_EVERY_S:
-                raise AgendaError(f"every must be between 1 and {MAX_EVERY_S} seconds")
-            if spec.lead_s >= every:
-                raise AgendaError("lead_s must be shorter than the interval")
-            anchor = (now + timedelta(seconds=every)).astimezone(UTC)
-            text_spec = str(every)
-        schedule = build(kind, text_spec, spec.tz, anchor)
-        first = schedule.first_at_or_after(now)
-        if first is None:
-            raise AgendaError(f"the cron expression {text_spec!r} never fires")
-        if kind is ScheduleKind.CRON and spec.lead_s:
-            _check_lead(schedule, first, spec.lead_s)
-        if self._user_exists is not None and not self._user_exists(user_id):
-            raise AgendaError(f"unknown user {user_id!r}")
-        row = ItemRow(
-            user_id=user_id,
-            kind=spec.kind,
-            activity=activity,
-            text=text,
-            schedule=str(kind),
-            spec=text_spec,
-            anchor=anchor,
-            tz=spec.tz,
-            priority=spec.priority,
-            lead_s=spec.lead_s,
-            grace_s=spec.grace_s,
-            created_at=now.astimezone(UTC),
-            next_fire=first.astimezone(UTC),
-        )
-        return row, schedule
-
-
-def _check_lead(schedule: Schedule, first: datetime, lead_s: int) -> None:
-    """A lead time must be shorter than the gaps between the next few occurrences."""
-    fire: datetime | None = first
-    for _ in range(8):
-        assert fire is not None
-        after = schedule.after(fire)
-        if after is None:
-            return
-        if (after - fire).total_seconds() <= lead_s:
-            raise AgendaError("lead_s must be shorter than the time between occurrences")
-        fire = after
-
-
-def _delivery_entry(
-    item: AgendaItem, fire_us: int, recorded_us: int, cursor_us: int | None
-) -> dict[str, Any]:
-    """A delivery as the journal and :func:`_write` take it (JSON-able)."""
-    return {
-        "item_id": item.item_id,
-        "user_id": item.user_id,
-        "kind": str(item.kind),
-        "what": _what(item),
-        "outcome": str(Outcome.DELIVERED),
-        "first_us": fire_us,
-        "last_us": fire_us,
-        "count": 1,
-        "recorded_us": recorded_us,
-        "reason": "",
-        "cursor_us": cursor_us,
-    }
-
-
-def _miss_entry(run: MissedRun) -> dict[str, Any]:
-    """A run of misses as the journal and :func:`_write` take it (JSON-able)."""
-    item = run.item
-    return {
-        "item_id": item.item_id,
-        "user_id": item.user_id,
-        "kind": str(item.kind),
-        "what": _what(item),
-        "outcome": str(Outcome.MISSED),
-        "first_us": run.first_us,
-        "last_us": run.last_us,
-        "count": run.count,
-        "recorded_us": run.recorded_us,
-        "reason": run.reason if run.exact else f"{run.reason} (at least this many)",
-        "cursor_us": run.cursor_us,
-    }
-
-
-def _write(connection: Connection, entries: list[dict[str, Any]]) -> set[int]:
-    """Log ``entries`` (deliveries and misses) and move their items' cursors, in bulk.
-
-    An occurrence already logged (by another process, or before a crash: a journal
-    replayed again) is skipped: ``(item_id, fire_time)`` is unique; but a delivery
-    replaces a miss of the same occurrence (another robot of the fleet gave up on it
-    while this one delivered it). A cursor only moves forward (a robot late with its
-    writes does not move one back), so a replay ends where the original writes did.
-    An entry of an item no longer stored (removed or erased by another process) is
-    skipped: an erased user's log must not come back. Returns the ids of those items.
-    A delivery also claims its occurrence (it may have been delivered without a claim
-    while the database was away).
-    """
-    ids = {int(entry["item_id"]) for entry in entries}
-    table = ItemRow.__table__
-    stored = set(connection.scalars(select(table.c.id).where(table.c.id.in_(ids))))
-    gone = ids - stored
-    rows: list[dict[str, Any]] = []
-    claims: list[dict[str, Any]] = []
-    cursors: dict[int, int | None] = {}
-    for entry in entries:
-        item_id = int(entry["item_id"])
-        if item_id in gone:
-            continue
-        rows.append(
-            {
-                "item_id": item_id,
-                "user_id": entry["user_id"],
-                "kind": entry["kind"],
-                "what": entry["what"],
-                "outcome": entry["outcome"],
-                "fire_time": from_us(int(entry["first_us"])),
-                "last_fire_time": from_us(int(entry["last_us"])),
-                "count": int(entry["count"]),
-                "recorded_at": from_us(int(entry["recorded_us"])),
-                "reason": entry["reason"],
-            }
-        )
-        if entry["outcome"] == str(Outcome.DELIVERED):
-            claims.append(
-                {
-                    "item_id": item_id,
-                    "fire_time": from_us(int(entry["first_us"])),
-                    "user_id": entry["user_id"],
-                    "claimed_by": str(entry.get("claimed_by", "unknown")),
-                    "claimed_at": from_us(int(entry["recorded_us"])),
-                }
-            )
-        cursor = entry["cursor_us"]
-        if item_id in cursors and cursor is not None:
-            known = cursors[item_id]
-            cursor = None if known is None else max(known, int(cursor))
-        cursors[item_id] = None if cursor is None else int(cursor)
-    if not rows:
-        return gone
-    # Rows in key order: robots writing overlapping rows at once take their locks in one
-    # order (PostgreSQL), so they wait for each other but never deadlock.
-    rows.sort(key=lambda row: (row["item_id"], row["fire_time"]))
-    _insert_new(connection, rows)
-    if claims:
-        claims.sort(key=lambda row: (row["item_id"], row["fire_time"]))
-        _insert_claims(connection, claims)
-    items: Any = ItemRow.__table__
-    ordered = sorted(cursors.items())
-    ends = [{"item": item_id} for item_id, cursor in ordered if cursor is None]
-    moves = [
-        {"item": item_id, "cursor": from_us(cursor)}
-        for item_id, cursor in ordered
-        if cursor is not None
-    ]
-    live = items.c.next_fire.is_not(None)
-    if ends:
-        connection.execute(
-            update(items).where(items.c.id == bindparam("item"), live).values(next_fire=None),
-            ends,
-        )
-    if moves:
-        connection.execute(
-            update(items)
-            .where(
-                items.c.id == bindparam("item"),
-                live,
-                items.c.next_fire < bindparam("cursor", type_=UtcDateTime()),
-            )
-            .values(next_fire=bindparam("cursor", type_=UtcDateTime())),
-            moves,
-        )
-    return gone
-
-
-def _insert_new(connection: Connection, rows: list[dict[str, Any]]) -> None:
-    """Log the rows not logged yet; a delivery replaces a miss of the same occurrence."""
-    table: Any = OccurrenceRow.__table__
-    dialect = connection.dialect.name
-    delivered = str(Outcome.DELIVERED)
-    if dialect in ("sqlite", "postgresql"):
-        module: Any = sqlite if dialect == "sqlite" else postgresql
-        misses = [row for row in rows if row["outcome"] != delivered]
-        deliveries = [row for row in rows if row["outcome"] == delivered]
-        if misses:
-            connection.execute(
-                module.insert(table).on_conflict_do_nothing(
-                    index_elements=["item_id", "fire_time"]
-                ),
-                misses,
-            )
-        if deliveries:
-            statement = module.insert(table)
-            replaced = ("outcome", "last_fire_time", "count", "recorded_at", "reason", "what")
-            connection.execute(
-                statement.on_conflict_do_update(
-                    index_elements=["item_id", "fire_time"],
-                    set_={name: statement.excluded[name] for name in replaced},
-                    where=table.c.outcome != delivered,
-                ),
-                deliveries,
-            )
-        return
-    for row in rows:
-        try:
-            with connection.begin_nested():
-                connection.execute(insert(table), row)
-        except IntegrityError:
-            log.warning("agenda item %s at %s was already logged", row["item_id"], row["fire_time"])
-
-
-def _insert_claims(connection: Connection, rows: list[dict[str, Any]]) -> None:
-    table: Any = ClaimRow.__table__
-    dialect = connection.dialect.name
-    if dialect in ("sqlite", "postgresql"):
-        module: Any = sqlite if dialect == "sqlite" else postgresql
-        connection.execute(
-            module.insert(table).on_conflict_do_nothing(index_elements=["item_id", "fire_time"]),
-            rows,
-        )
-        return
-    for row in rows:
-        try:
-            with connection.begin_nested():
-                connection.execute(insert(table), row)
-        except IntegrityError:
-            pass
-
-
-def _claim(connection: Connection, item: DueItem, claimer: str, now_us: int) -> str | None:
-    """Claim one occurrence in the database: ``_MINE`` when this claimer has it (now or
-    from before), ``_THEIRS`` when another one does, None when the item is gone."""
-    items: Any = ItemRow.__table__
-    if connection.scalar(select(items.c.id).where(items.c.id == item.item_id)) is None:
-        return None
-    table: Any = ClaimRow.__table__
-    fire = item.fire_time
-    row = {
-        "item_id": item.item_id,
-        "fire_time": fire,
-        "user_id": item.user_id,
-        "claimed_by": claimer,
-        "claimed_at": from_us(now_us),
-    }
-    dialect = connection.dialect.name
-    if dialect in ("sqlite", "postgresql"):
-        module: Any = sqlite if dialect == "sqlite" else postgresql
-        inserted = (
-            connection.execute(
-                module.insert(table)
-                .values(row)
-                .on_conflict_do_nothing(index_elements=["item_id", "fire_time"])
-                .returning(table.c.item_id)
-            ).first()
-            is not None
-        )
-    else:
-        try:
-            with connection.begin_nested():
-                connection.execute(insert(table).values(row))
-            inserted = True
-        except IntegrityError:
-            inserted = False
-    if inserted:
-        return _MINE
-    owner = connection.scalar(
-        select(table.c.claimed_by).where(table.c.item_id == item.item_id, table.c.fire_time == fire)
-    )
-    return _MINE if owner == claimer else _THEIRS
-
-
-def _key(item: DueItem) -> tuple[int, int]:
-    return (item.item_id, to_us(item.fire_time))
-
-
-def _what(item: AgendaItem) -> str:
-    """The reminder's text or the event's activity, for the log."""
-    if item.kind is ItemKind.REMINDER and item.text:
-        return item.text
-    return item.activity or ""
-
-
-def _item(row: ItemRow) -> AgendaItem:
-    try:
-        kind, priority = ItemKind(row.kind), Priority(row.priority)
-    except ValueError as error:
-        raise AgendaError(str(error)) from None
-    return AgendaItem(
-        item_id=row.id,
-        user_id=row.user_id,
-        kind=kind,
-        activity=row.activity,
-        text=row.text,
-        schedule=row.schedule,
-        spec=row.spec,
-        tz=row.tz,
-        priority=priority,
-        lead_s=row.lead_s,
-        grace_s=row.grace_s,
-        created_at=row.created_at,
-        next_fire=row.next_fire,
-    )
-
-
-def _occurrence(row: OccurrenceRow) -> Occurrence:
-    return Occurrence(
-        item_id=row.item_id,
-        user_id=row.user_id,
-        kind=ItemKind(row.kind),
-        what=row.what,
-        outcome=Outcome(row.outcome),
-        fire_time=row.fire_time,
-        last_fire_time=row.last_fire_time,
-        count=row.count,
-        recorded_at=row.recorded_at,
-        reason=row.reason,
-    )
-
-
-class _AgendaUserData:
-    """The agenda's part of ``dms users export|erase``: the user's items and log.
-
-    Registered with the profile store, which calls it inside its own transaction. A
-    database without the agenda's tables (a store made by ``memory`` alone) has none.
-    """
-
-    name = "agenda"
-
-    def export_user(self, session: Session, user_id: str) -> dict[str, list[dict[str, Any]]] | None:
-        """Every column of the user's items and log rows, oldest first."""
-        if not _has_tables(session):
-            return None
-        return {
-            "items": [_stored(row) for row in session.scalars(_of(ItemRow, user_id))],
-            "log": [_stored(row) for row in session.scalars(_of(OccurrenceRow, user_id))],
-            "claims": [
-                _stored(row)
-                for row in session.scalars(
-                    select(ClaimRow)
-                    .where(ClaimRow.user_id == user_id)
-                    .order_by(ClaimRow.fire_time, ClaimRow.item_id)
-                )
-            ],
-        }
-
-    def erase_user(self, session: Session, user_id: str) -> None:
-        """Delete the user's log and items."""
-        if not _has_tables(session):
-            return
-        session.execute(delete(ClaimRow).where(ClaimRow.user_id == user_id))
-        session.execute(delete(OccurrenceRow).where(OccurrenceRow.user_id == user_id))
-        session.execute(delete(ItemRow).where(ItemRow.user_id == user_id))
-
-
-def _has_tables(session: Session) -> bool:
-    names = {ItemRow.__tablename__, OccurrenceRow.__tablename__, ClaimRow.__tablename__}
-    return names <= set(inspect(session.connection()).get_table_names())
-
-
-def _of(model: type[ItemRow] | type[OccurrenceRow], user_id: str) -> Any:
-    return select(model).where(model.user_id == user_id).order_by(model.id)
-
-
-def _stored(row: ItemRow | OccurrenceRow | ClaimRow) -> dict[str, Any]:
-    """A row as stored, times in ISO 8601."""
-    out: dict[str, Any] = {}
-    for column in row.__table__.columns:
-        value = getattr(row, column.key)
-        out[column.key] = value.isoformat() if isinstance(value, datetime) else value
-    return out
-
-
-USER_DATA = _AgendaUserData()
-register_user_data(USER_DATA)
+def _log_report(key: str, line: str) -> None:
+    """Where the writer's lines go without a daemon (the command line, tests): the log."""
+    log.warning("%s: %s", key, line)

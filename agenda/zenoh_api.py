@@ -4,7 +4,7 @@ Pure logic; the daemon's bus owns Zenoh and calls :func:`handle_query` under its
 lock with the daemon's ``now``. The reply is ``(ok, body)``: the bus sends ``body``
 as a reply when ``ok`` and as an error reply otherwise, never silence.
 
-Payloads (JSON objects; unknown fields are ignored, as everywhere in CONTRACT.md):
+Payloads (JSON objects; unknown fields are ignored, as everywhere in docs/contract.md):
 
 - none, or ``{"op": "list", "limit": 20}``: ``{"items": [upcoming item, ...]}``
 - ``{"op": "add", "kind": ..., ...ItemSpec fields}``: ``{"item": {...}}``

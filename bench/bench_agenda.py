@@ -7,7 +7,7 @@ users' items wait their grace time and are recorded as missed. Only ``Agenda.due
 timed. Also: the time to add the items, to reopen the agenda (a daemon restart) and
 to recover. Prints one JSON object. Target: p99 <= 0.5 ms.
 
-    .venv/bin/python bench/bench_agenda.py [--users N] [--hours H]
+    .venv/bin/python bench/bench_agenda.py [--users N] [--hours H] [--quick]
 """
 
 from __future__ import annotations
@@ -61,7 +61,10 @@ def main() -> None:
     parser.add_argument("--users", type=int, default=1000)
     parser.add_argument("--hours", type=float, default=48.0)
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--quick", action="store_true", help="50 users, 2 hours (smoke)")
     args = parser.parse_args()
+    if args.quick:
+        args.users, args.hours = 50, 2.0
     rng = random.Random(args.seed)
     users = [f"user{i:04d}" for i in range(args.users)]
     with tempfile.TemporaryDirectory() as folder:

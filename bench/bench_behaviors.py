@@ -8,7 +8,7 @@ that change state. A pure "running" measurement ticks a leaf that never finishes
 Prints one JSON object with nanoseconds per tick and per transition for each side
 and the ratios (ours / py_trees; at most 1 is the goal).
 
-The flat loop (``flat_*``) is the shape issue 14 measured SMACH on: one machine of
+The flat loop (``flat_*``) is the shape SMACH was measured on: one machine of
 two states, ``A -done-> B -done-> A``, each finishing as soon as it runs, so every
 step is a transition (here a tick follows up to ``MAX_STEPS_PER_TICK`` of them, as
 SMACH's ``execute`` follows them in its loop). py_trees runs a memory Sequence of the
@@ -16,11 +16,12 @@ two leaves (two transitions a tick). SMACH is not on PyPI: its figure is the one
 measured outside the project (``SMACH_FLAT_NS``, 2.5 µs a transition; dms was 2.1 µs
 there), printed beside ours for the ratio.
 
-    .venv/bin/python bench/bench_behaviors.py
+    .venv/bin/python bench/bench_behaviors.py [--quick]
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import random
 import sys
@@ -33,8 +34,9 @@ import py_trees
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from activities.containers import StateMachine
 from activities.context import ActivityContext
-from activities.engine import MAX_STEPS_PER_TICK, Node, Runtime, StateMachine, Status
+from activities.engine import MAX_STEPS_PER_TICK, Node, Runtime, Status
 from dms.kernel.expression import ExpressionArbiter
 from sim.robot import SimRobot
 
@@ -66,7 +68,7 @@ class Blink(Node):
         return Status.RUNNING
 
 
-def ours(hold: int) -> tuple[float, int]:
+def ours(hold: int, ticks: int) -> tuple[float, int]:
     robot = SimRobot()
     ctx = ActivityContext(
         expression=ExpressionArbiter(robot, lambda _c: None), rng=random.Random(0)
@@ -85,7 +87,7 @@ def ours(hold: int) -> tuple[float, int]:
     root.bind({})
     tick = root.tick
     start = time.perf_counter()
-    for _ in range(TICKS):
+    for _ in range(ticks):
         tick(NOW)
     elapsed = time.perf_counter() - start
     return elapsed, counter[0]
@@ -109,7 +111,7 @@ class PyBlink(py_trees.behaviour.Behaviour):
         return py_trees.common.Status.RUNNING
 
 
-def theirs(hold: int) -> tuple[float, int]:
+def theirs(hold: int, ticks: int) -> tuple[float, int]:
     counter = [0]
     level3 = py_trees.composites.Sequence("L3", memory=True)
     level3.add_children([PyBlink("A", hold, counter), PyBlink("B", hold, counter)])
@@ -120,14 +122,14 @@ def theirs(hold: int) -> tuple[float, int]:
     tree = py_trees.trees.BehaviourTree(root)
     tick = tree.root.tick_once
     start = time.perf_counter()
-    for _ in range(TICKS):
+    for _ in range(ticks):
         tick()
     elapsed = time.perf_counter() - start
     return elapsed, counter[0]
 
 
-def flat_ours() -> tuple[float, int]:
-    """The flat two-state loop: seconds for about ``FLAT_TRANSITIONS`` transitions."""
+def flat_ours(transitions: int) -> tuple[float, int]:
+    """The flat two-state loop: seconds for about ``transitions`` transitions."""
     rt = Runtime(
         ActivityContext(
             expression=ExpressionArbiter(SimRobot(), lambda _c: None), rng=random.Random(0)
@@ -139,7 +141,7 @@ def flat_ours() -> tuple[float, int]:
     loop = StateMachine("FLAT", ["done"], rt, states, {"A": {"done": "B"}, "B": {"done": "A"}}, "A")
     loop.bind({})
     tick = loop.tick
-    ticks = FLAT_TRANSITIONS // MAX_STEPS_PER_TICK
+    ticks = transitions // MAX_STEPS_PER_TICK
     start = time.perf_counter()
     for _ in range(ticks):
         tick(NOW)
@@ -147,7 +149,7 @@ def flat_ours() -> tuple[float, int]:
     return elapsed, loop.transitions_taken
 
 
-def flat_theirs() -> tuple[float, int]:
+def flat_theirs(transitions: int) -> tuple[float, int]:
     """py_trees' flat loop: a memory Sequence of two leaves that succeed at once."""
     counter = [0]
     root = py_trees.composites.Sequence("FLAT", memory=True)
@@ -155,7 +157,7 @@ def flat_theirs() -> tuple[float, int]:
     tree = py_trees.trees.BehaviourTree(root)
     tick = tree.root.tick_once
     start = time.perf_counter()
-    for _ in range(FLAT_TRANSITIONS // 2):
+    for _ in range(transitions // 2):
         tick()
     elapsed = time.perf_counter() - start
     return elapsed, counter[0]
@@ -167,11 +169,16 @@ def best_of(runs: int, measure: Callable[[], tuple[float, int]]) -> tuple[float,
 
 
 def main() -> None:
-    figures: dict[str, float | int] = {"ticks": TICKS}
-    our_run, _ = ours(-1)
-    their_run, _ = theirs(-1)
-    our_mixed, our_transitions = ours(HOLD)
-    their_mixed, their_transitions = theirs(HOLD)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="a hundredth of the ticks (smoke)")
+    quick = parser.parse_args().quick
+    ticks = TICKS // 100 if quick else TICKS
+    flat = FLAT_TRANSITIONS // 100 if quick else FLAT_TRANSITIONS
+    figures: dict[str, float | int | bool] = {"ticks": ticks, "quick": quick}
+    our_run, _ = ours(-1, ticks)
+    their_run, _ = theirs(-1, ticks)
+    our_mixed, our_transitions = ours(HOLD, ticks)
+    their_mixed, their_transitions = theirs(HOLD, ticks)
     figures["ours_ns_per_running_tick"] = round(our_run / TICKS * 1e9, 1)
     figures["py_trees_ns_per_running_tick"] = round(their_run / TICKS * 1e9, 1)
     figures["ours_transitions"] = our_transitions
@@ -182,8 +189,8 @@ def main() -> None:
     figures["transition_ratio"] = round(
         (our_mixed / our_transitions) / (their_mixed / their_transitions), 3
     )
-    flat_s, flat_n = best_of(5, flat_ours)
-    py_flat_s, py_flat_n = best_of(5, flat_theirs)
+    flat_s, flat_n = best_of(5, lambda: flat_ours(flat))
+    py_flat_s, py_flat_n = best_of(5, lambda: flat_theirs(flat))
     flat_ns = flat_s / flat_n * 1e9
     py_flat_ns = py_flat_s / py_flat_n * 1e9
     figures["flat_transitions"] = flat_n

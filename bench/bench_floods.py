@@ -1,4 +1,4 @@
-"""Benchmarks of the daemon under floods of valid requests (issue 11); prints one JSON object.
+"""Benchmarks of the daemon under floods of valid requests; prints one JSON object.
 
 - a ``reload_rules`` flood: 2,000 requests in 4 s from another process (the request cap
   raised so that all are admitted): the longest ``dms/state`` gap and how many reloads ran;
@@ -7,7 +7,7 @@
 
 Both against a real daemon process over real Zenoh on 127.0.0.1.
 
-Usage: ``.venv/bin/python bench/bench_floods.py [--trials N]``
+Usage: ``.venv/bin/python bench/bench_floods.py [--trials N] [--quick]``
 """
 
 from __future__ import annotations
@@ -58,7 +58,7 @@ def _flood(session: Any, rate: float, seconds: float, stop: threading.Event) -> 
     return sent
 
 
-def bench_reload_flood() -> dict[str, Any]:
+def bench_reload_flood(seconds: float = 4.0) -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as tmp:
         daemon = DaemonProcess(Path(tmp), extra_config=UNCAPPED)
         session = client_session(daemon.port)
@@ -67,7 +67,7 @@ def bench_reload_flood() -> dict[str, Any]:
             states = Collector(session, "robots/mini/dms/state")
             states.wait_count(2)
             mark = states.mark()
-            sent = _flood(session, 500.0, 4.0, threading.Event())
+            sent = _flood(session, 500.0, seconds, threading.Event())
             last = states.wait_for(lambda s: s["reloads"] >= 1, start=mark, timeout=20)
             states.wait_for(lambda s: _t(s) >= _t(last) + 2.0, start=mark, timeout=20)
             window = states.messages[mark:]
@@ -117,12 +117,15 @@ def bench_sigterm_under_flood(trials: int) -> dict[str, Any]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--trials", type=int, default=5)
+    parser.add_argument(
+        "--quick", action="store_true", help="a 1 s reload flood, one trial (smoke)"
+    )
     args = parser.parse_args()
     print(
         json.dumps(
             {
-                "reload_flood": bench_reload_flood(),
-                "sigterm_under_flood": bench_sigterm_under_flood(args.trials),
+                "reload_flood": bench_reload_flood(1.0 if args.quick else 4.0),
+                "sigterm_under_flood": bench_sigterm_under_flood(1 if args.quick else args.trials),
             }
         )
     )

@@ -1,4 +1,4 @@
-"""Benchmark: frames and gaze (issue 16's figures).
+"""Benchmark: frames and gaze.
 
 - ``lookup_us``: ``FrameStore.lookup`` of a face in a store of 51 frames (the base, the
   body's five, 44 objects half of them two levels deep, the face), relative to the
@@ -13,11 +13,12 @@
 
 Prints one JSON object.
 
-    .venv/bin/python bench/bench_frames.py
+    .venv/bin/python bench/bench_frames.py [--quick]
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import statistics
@@ -54,22 +55,22 @@ def _percentiles(samples: list[float]) -> dict[str, float]:
     return {"p50": round(cuts[49], 2), "p99": round(cuts[98], 2)}
 
 
-def bench_lookup() -> dict[str, float]:
+def bench_lookup(n: int = N) -> dict[str, float]:
     frames = _store()
     now = T0 + timedelta(seconds=0.2)
     samples = []
-    for _ in range(N):
+    for _ in range(n):
         start = time.perf_counter_ns()
         frames.lookup("face:ann", now, reference=HEAD)
         samples.append((time.perf_counter_ns() - start) / 1000)
     return _percentiles(samples)
 
 
-def bench_gaze() -> dict[str, float]:
+def bench_gaze(n: int = N) -> dict[str, float]:
     frames = _store()
     attention = Attention("face:ann")
     samples = []
-    for tick in range(N):
+    for tick in range(n):
         now = T0 + timedelta(seconds=tick * 0.5)
         sway = 0.3 + 0.2 * math.sin(tick / 10)
         frames.set("face:ann", pose((0.9, sway, EYE_HEIGHT_M)), stamp=now, stale_after_s=1.0)
@@ -79,7 +80,7 @@ def bench_gaze() -> dict[str, float]:
     return {**_percentiles(samples), "shifts": attention.shifts}
 
 
-def bench_attend_tick() -> dict[str, float]:
+def bench_attend_tick(n: int = N) -> dict[str, float]:
     robot = SimRobot()
     scene = Scene(joints=robot.joints)
     arbiter = ExpressionArbiter(robot, lambda _command: None)
@@ -87,7 +88,7 @@ def bench_attend_tick() -> dict[str, float]:
     keeper = GazeKeeper(ctx, "user", AttentionSettings())
     fresh = frozenset({keys.PERCEPTION_USER})
     samples = []
-    for tick in range(N):
+    for tick in range(n):
         now = T0 + timedelta(seconds=tick * 0.5)
         sway = round(0.3 + 0.2 * math.sin(tick / 10), 2)  # a tracker's centimetres
         user = UserPerception.model_validate(
@@ -108,13 +109,18 @@ def bench_attend_tick() -> dict[str, float]:
 
 
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="1,000 samples each (smoke)")
+    quick = parser.parse_args().quick
+    n = 1000 if quick else N
     print(
         json.dumps(
             {
                 "frames": 51,
-                "lookup_us": bench_lookup(),
-                "gaze_update_us": bench_gaze(),
-                "attend_tick_us": bench_attend_tick(),
+                "samples": n,
+                "lookup_us": bench_lookup(n),
+                "gaze_update_us": bench_gaze(n),
+                "attend_tick_us": bench_attend_tick(n),
                 "targets_us": {"lookup": 10, "gaze_update": 50, "attend_tick": 50},
             }
         )

@@ -12,9 +12,9 @@
 3. Profile write (``write_ms_mean``, ``write_ms_p99``): the daemon's mix of writes, each
    with a ``write_id`` (a session started and ended, an activity run, feedback, an
    interaction, an initiative, a field update, an answer), 3 users, a SQLite file in
-   /dev/shm so that the figure is the code's, not the disk's fsync (issue 14).
+   /dev/shm so that the figure is the code's, not the disk's fsync.
 
-    .venv/bin/python bench/bench_memory.py [--personas N] [--users N]
+    .venv/bin/python bench/bench_memory.py [--personas N] [--users N] [--quick]
 """
 
 from __future__ import annotations
@@ -226,7 +226,12 @@ def main() -> None:
     parser.add_argument("--loads", type=int, default=2_000)
     parser.add_argument("--seed", type=int, default=99)
     parser.add_argument("--write-rounds", type=int, default=300)
+    parser.add_argument(
+        "--quick", action="store_true", help="5 personas, 300 users, 20 write rounds (smoke)"
+    )
     args = parser.parse_args()
+    if args.quick:
+        args.personas, args.users, args.loads, args.write_rounds = 5, 300, 100, 20
     began = time.perf_counter()
     result = {
         **learning(args.personas, args.seed),

@@ -17,7 +17,7 @@ initial state at 2026-11-23 00:00 UTC. Measured:
 
 Totals are the best of ``--repeat`` runs. Prints one JSON object.
 
-    .venv/bin/python bench/bench_motivation.py [--repeat N]
+    .venv/bin/python bench/bench_motivation.py [--repeat N] [--quick]
 """
 
 from __future__ import annotations
@@ -73,21 +73,24 @@ def best_of(repeat: int, job: Callable[[], object]) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--quick", action="store_true", help="3 days, once (smoke)")
     args = parser.parse_args()
+    days = 3 if args.quick else DAYS
+    repeat = 1 if args.quick else args.repeat
     model = MotivationModel(zone=ZoneInfo("Europe/Madrid"))
     state = model.initial_state(START)
     nothing = model.no_stimuli()
-    seconds = DAYS * 86_400.0
+    seconds = days * 86_400.0
 
     step_loop(model, 2000)  # warm up numpy and the caches
     step_durations, _ = step_loop(model, 20_000)
     step_us = [d * 1e6 for d in step_durations]
 
     advance_s = best_of(
-        args.repeat, lambda: advance(model, state, seconds, nothing, None, START, TICK_S)
+        repeat, lambda: advance(model, state, seconds, nothing, None, START, TICK_S)
     )
     follow_s = best_of(
-        args.repeat,
+        repeat,
         lambda: simulate(model, state, START, seconds, nothing, follow=True, every=0),
     )
     run = simulate(model, state, START, seconds, nothing, follow=True, every=0)
@@ -116,9 +119,10 @@ def main() -> None:
                 "follow_target_s": 2.0,
                 "loop_1h_s": round(loop_1h_s, 3),
                 "loop_30d_extrapolated_s": round(loop_1h_s * 24 * DAYS, 1),
+                "days": days,
                 "loop_vs_simulate_max_diff": difference,
                 "loop_vs_simulate_same_dominant": same_dominant,
-                "repeat": args.repeat,
+                "repeat": repeat,
             }
         )
     )

@@ -1,15 +1,26 @@
-"""Start time and idle memory of ``dms run`` (issue 14, item 2); prints one JSON object.
+"""Start time and idle memory of ``dms run``; prints one JSON object.
 
 - time from exec of ``dms run`` to its liveliness token ``robots/<id>/alive/dms``, seen
   by another process's Zenoh session: median and max of ``--starts`` starts (default 10),
   each on a free loopback port with a fresh temporary SQLite database (``ready_s_*``:
   the schema is created), and as many restarts on one database already at head
   (``restart_s_*``: what a supervisor restarting a crashed daemon waits);
+- beside them, the time of a bare ``python -c "import numpy, sqlalchemy, zenoh, pydantic"``
+  run before each start (``bare_import_s_median``), and the starts as multiples of it
+  (``ready_vs_bare``, ``restart_vs_bare``; target <= 2): the machine's speed and load
+  cancel out;
 - the daemon's resident memory (RSS, from ``/proc``) at ready, and after ``--idle-s``
-  seconds idle (default 600: the issue's ten minutes) in one more start.
+  seconds idle (default 600: ten minutes) in one more start.
+
+Before timing, the project's modules are compiled to bytecode (``compileall``), as pip
+does when it installs a package: the site-packages of the bare import are compiled too,
+and under ``PYTHONDONTWRITEBYTECODE`` every start would otherwise compile the project
+first (0.3-0.5 s). ``--no-compile`` leaves the tree as it is.
 
 Not a timed test: wall-clock figures on a shared machine; run it when the start path
-changes. Usage: ``.venv/bin/python bench/bench_start.py [--starts N] [--idle-s S]``
+changes. Usage: ``.venv/bin/python bench/bench_start.py [--starts N] [--idle-s S] [--quick]
+[--no-compile]``
+(``--quick``: two starts of each kind, one second idle).
 """
 
 from __future__ import annotations
@@ -34,6 +45,23 @@ import zenoh  # noqa: E402
 from tests.integration.harness import free_port  # noqa: E402
 
 TOKEN = "robots/mini/alive/dms"
+BARE = "import numpy, sqlalchemy, zenoh, pydantic"
+"""What any process of the daemon's stack imports: the floor of its start time."""
+PACKAGES = ("dms", "activities", "agenda", "managers", "memory", "motivation", "sim")
+"""The project's packages, compiled before timing."""
+
+
+def compile_project() -> None:
+    """Write the bytecode of :data:`PACKAGES`, as an installation does."""
+    command = [sys.executable, "-m", "compileall", "-q", *PACKAGES]
+    subprocess.run(command, cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+
+
+def bare_import_s() -> float:
+    """Seconds of one ``python -c BARE``, from exec to exit."""
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-c", BARE], check=True)
+    return time.perf_counter() - t0
 
 
 def watcher_session(port: int) -> zenoh.Session:
@@ -118,11 +146,21 @@ def main() -> None:
         "--idle-s", type=float, default=600.0, help="idle time before the last RSS (default 600)"
     )
     parser.add_argument("--timeout", type=float, default=60.0, help="readiness wait per start")
+    parser.add_argument("--quick", action="store_true", help="2 starts each, 1 s idle (smoke)")
+    parser.add_argument(
+        "--no-compile", action="store_true", help="do not compile the project's bytecode first"
+    )
     args = parser.parse_args()
+    if args.quick:
+        args.starts, args.idle_s = 2, 1.0
+    if not args.no_compile:
+        compile_project()
 
     times: list[float] = []
     ready_rss: list[float] = []
+    bare: list[float] = []
     for _ in range(args.starts):
+        bare.append(bare_import_s())
         elapsed, proc, session, folder = one_start(args.timeout)
         times.append(elapsed)
         ready_rss.append(rss_mb(proc.pid))
@@ -132,6 +170,7 @@ def main() -> None:
     _, proc, session, kept = one_start(args.timeout)  # creates the database, not timed
     stop(proc, session, kept, keep=True)
     for _ in range(args.starts):
+        bare.append(bare_import_s())
         elapsed, proc, session, kept = one_start(args.timeout, kept)
         restarts.append(elapsed)
         stop(proc, session, kept, keep=True)
@@ -152,11 +191,15 @@ def main() -> None:
         "cpus": os.cpu_count(),
         "load_1min": round(os.getloadavg()[0], 2),
         "starts": args.starts,
+        "compiled": not args.no_compile,
         "ready_s_median": round(statistics.median(times), 3),
         "ready_s_max": round(max(times), 3),
         "ready_s_all": [round(t, 3) for t in times],
         "restart_s_median": round(statistics.median(restarts), 3),
         "restart_s_max": round(max(restarts), 3),
+        "bare_import_s_median": round(statistics.median(bare), 3),
+        "ready_vs_bare": round(statistics.median(times) / statistics.median(bare), 2),
+        "restart_vs_bare": round(statistics.median(restarts) / statistics.median(bare), 2),
         "rss_mb_at_ready_median": round(statistics.median(ready_rss), 1),
         "idle_s": args.idle_s,
         "rss_mb_at_ready": round(at_ready, 1),

@@ -5,9 +5,9 @@
   started and cancelled (each cancel is a profile write). Target ≤ 0.6 s.
 - ``spool_writes_per_s``: writes per second taken by the profile service (writer thread,
   fsync'd spool) while the database is locked.
-- ``drain_10k_s``: time for 10,000 spooled writes to reach the database once it is back.
+- ``drain_s``: time for the spooled writes (10,000) to reach the database once it is back.
 
-Run: ``.venv/bin/python bench/bench_storage.py [--hold-s 20]``.
+Run: ``.venv/bin/python bench/bench_storage.py [--hold-s 20] [--quick]``.
 """
 
 from __future__ import annotations
@@ -62,8 +62,8 @@ def lock_gap(hold_s: float) -> tuple[float, int]:
         return max(b - a for a, b in pairwise(times)), rounds
 
 
-def spool_and_drain() -> tuple[float, float]:
-    """Writes/s into the spool while the database is locked; seconds to drain 10,000."""
+def spool_and_drain(writes: int = WRITES) -> tuple[float, float]:
+    """Writes/s into the spool while the database is locked; seconds to drain them."""
     with tempfile.TemporaryDirectory(prefix="dms-bench-") as folder:
         db = Path(folder) / "dms.db"
         store = ProfileStore(f"sqlite:///{db}", busy_timeout_s=0.2)
@@ -76,15 +76,15 @@ def spool_and_drain() -> tuple[float, float]:
         while not len(service.writer.spool) and time.monotonic() < deadline:
             time.sleep(0.01)  # the first write finds the lock and starts the spool
         started = time.perf_counter()
-        for n in range(1, WRITES):
+        for n in range(1, writes):
             service.call("record_feedback", "ann", "quiz", (n % 5) / 4, now + timedelta(seconds=n))
-        rate = (WRITES - 1) / (time.perf_counter() - started)
-        assert service.pending_writes == WRITES
+        rate = (writes - 1) / (time.perf_counter() - started)
+        assert service.pending_writes == writes
         holder.release()
         started = time.perf_counter()
         assert service.writer.wait_idle(600)
         drain = time.perf_counter() - started
-        assert store.export("ann")["profile"]["scores"]["quiz"]["feedback_count"] == WRITES
+        assert store.export("ann")["profile"]["scores"]["quiz"]["feedback_count"] == writes
         service.close()
         store.close()
         return rate, drain
@@ -93,18 +93,23 @@ def spool_and_drain() -> tuple[float, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--hold-s", type=float, default=20.0)
+    parser.add_argument(
+        "--quick", action="store_true", help="the lock held 3 s, 500 writes (smoke)"
+    )
     args = parser.parse_args()
-    gap, rounds = lock_gap(args.hold_s)
-    rate, drain = spool_and_drain()
+    hold_s, writes = (3.0, 500) if args.quick else (args.hold_s, WRITES)
+    gap, rounds = lock_gap(hold_s)
+    rate, drain = spool_and_drain(writes)
     print(
         json.dumps(
             {
-                "lock_held_s": args.hold_s,
+                "lock_held_s": hold_s,
                 "lock_gap_s": round(gap, 3),
                 "lock_gap_target_s": 0.6,
                 "writes_under_lock": rounds,
                 "spool_writes_per_s": round(rate),
-                "drain_10k_s": round(drain, 2),
+                "writes": writes,
+                "drain_s": round(drain, 2),
             }
         )
     )

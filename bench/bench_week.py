@@ -1,4 +1,4 @@
-"""Resident memory of one daemon after a simulated week (issue 14, item 2); one JSON object.
+"""Resident memory of one daemon after a simulated week; one JSON object.
 
 ``dms run`` has no clock faster than real time: :class:`dms.daemon.Daemon` takes a
 ``Clock``, but its loop waits on a :class:`~dms.kernel.clock.Ticker` against real
@@ -27,7 +27,8 @@ Reported: ``VmRSS`` at ready and after each simulated day, after the week, and t
 peak (``VmHWM``); target <= 150 MB after the week (and <= 120 MB idle after ten real
 minutes: ``bench_start.py``). Not a timed test; it takes minutes.
 
-Usage: ``.venv/bin/python bench/bench_week.py [--days 7] [--users 3]``
+Usage: ``.venv/bin/python bench/bench_week.py [--days 7] [--users 3] [--quick]``
+(``--quick``: a simulated hour).
 """
 
 from __future__ import annotations
@@ -269,8 +270,9 @@ def main() -> None:
     parser.add_argument("--days", type=float, default=7.0, help="virtual days (default 7)")
     parser.add_argument("--users", type=int, default=3, help="visiting users (default 3)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--quick", action="store_true", help="a simulated hour (smoke)")
     args = parser.parse_args()
-    print(json.dumps(run(args.days, args.users, args.seed)))
+    print(json.dumps(run(1 / 24 if args.quick else args.days, args.users, args.seed)))
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@ simulated users.
 
 from __future__ import annotations
 
+import logging
 import math
 import random
 import zoneinfo
@@ -15,6 +16,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
+
+from sqlalchemy.engine import make_url
 
 from activities import BehaviorError, BehaviorLibrary, decision_warnings
 from agenda import Agenda, AgendaError
@@ -30,8 +33,10 @@ from dms.profiles import ProfileService
 from dms.rules import LiveRules, RulesError
 from dms.scene import Scene
 from memory import ActivityChooser, PreferenceModel, ProfileError, ProfileStore, QuestionBank
-from memory.db import default_url
+from memory.db import as_url, default_url
 from motivation import MotivationConfigError, MotivationModel, load_config
+
+log = logging.getLogger(__name__)
 
 AGENDA_POLL_S = POLL_S
 """How often a robot's agenda looks for items added elsewhere (another robot, the CLI)."""
@@ -54,14 +59,15 @@ class Stack:
     """``(key, line)`` found while loading, for ``dms/errors`` once the bus is open."""
     chooser: ActivityChooser | None = None
     train_when_ready: bool = False
-    """The chooser decides by the seed model until :meth:`when_ready` trains it from the store."""
+    """The chooser has an untrained model until :meth:`when_ready` trains it from the store."""
 
     def when_ready(self) -> None:
         """Once the daemon is ready (``alive/dms`` declared): train the preference model
-        from the store in a background thread; the chooser swaps it in when done.
+        from the seed personas and the store in a background thread; the chooser swaps it
+        in when done (tens of milliseconds later).
 
-        Training is work that can wait: until then the chooser decides by the seed
-        model, so a restarted daemon is back at once (issue 14).
+        Training is work that can wait: until then the chooser's beliefs start flat, as
+        for a user of unknown features, so a restarted daemon is back at once.
         """
         if self.train_when_ready and self.chooser is not None:
             self.train_when_ready = False
@@ -110,10 +116,10 @@ def build_stack(
 
     ``retrain=False`` trains the preference model here, once, and keeps it (the simulator:
     retraining runs in a thread, and a seeded run must not depend on thread timing).
-    With ``retrain=True`` (the daemon) the chooser starts on the seed model and
-    :meth:`Stack.when_ready` trains from the store in the background. ``agenda_poll_s``:
-    how often the agenda looks for items added elsewhere (None: never, for a database
-    nobody else writes, such as a simulation's own).
+    With ``retrain=True`` (the daemon) the chooser starts untrained and
+    :meth:`Stack.when_ready` trains from the seed and the store in the background.
+    ``agenda_poll_s``: how often the agenda looks for items added elsewhere (None: never,
+    for a database nobody else writes, such as a simulation's own).
     ``background_io=False`` runs the store's and the agenda's database work inline, not on
     their threads (the simulator, for the same reason).
     """
@@ -146,10 +152,24 @@ def build_stack(
         except ProfileError as error:
             raise ConfigError(f"database {url}: {error}") from None
         profiles = ProfileService(
-            store, report_error, threaded=background_io, owner=settings.robot_id
+            store,
+            report_error,
+            threaded=background_io,
+            owner=settings.robot_id,
+            spool_dir=settings.storage.spool_dir,
+            memory_bound=settings.storage.memory_bound,
+        )
+        log.debug(
+            "storage: profiles and agenda in %s; writes go through a background writer"
+            " (spare spool folder %s, %d writes kept in memory at most)",
+            make_url(as_url(url)).render_as_string(hide_password=True),
+            settings.storage.spool_dir or "none",
+            settings.storage.memory_bound,
         )
         if retrain:
-            model = PreferenceModel.from_seed()  # the store's model: Stack.when_ready
+            # Trained after ready (Stack.when_ready): even the seed personas' fit cost
+            # the start 20-40 ms.
+            model = PreferenceModel.untrained()
         else:  # the simulator: trained here, so that a seeded run never depends on threads
             try:
                 model = PreferenceModel.train(store)
@@ -173,6 +193,8 @@ def build_stack(
                 background=background_io,
                 claimer=settings.robot_id,
                 poll_s=agenda_poll_s,
+                report=report_error,
+                spool_dir=settings.storage.spool_dir,
             )
         except AgendaError as error:
             profiles.close()
@@ -185,7 +207,7 @@ def build_stack(
         done_timeout_s=settings.controller.done_timeout_s,
         offline_after_unacked=settings.controller.offline_after_unacked,
     )
-    inputs = InputBoard(settings.inputs.stale_after_s)
+    inputs = InputBoard(settings.inputs.stale_after_s, settings.inputs.max_param_names)
     deps = ControllerDeps(
         library=library,
         expression=expression,

@@ -53,8 +53,21 @@ _USER_INITIATIVE: dict[Literal["high", "moderate", "low", "unknown"], float] = {
 }
 
 
+QUERY_CAP_KEYS = (
+    "dms/state",
+    "dms/behavior",
+    "dms/decisions",
+    "dms/config",
+    "users/*",
+    "agenda/*",
+)
+"""The queryables, as ``[inputs] rate_cap_per_s`` names them (``users/*``: every
+``users/<id>``)."""
+
 _RATE_CAP_PER_S: dict[str, float | None] = {
     "perception/user": 100.0,
+    "perception/objects": 100.0,
+    "robot/joints": 200.0,
     "perception/touch": 50.0,
     "perception/speech": 50.0,
     "perception/screen": 50.0,
@@ -62,30 +75,59 @@ _RATE_CAP_PER_S: dict[str, float | None] = {
     "params/env": 50.0,
     "request": 50.0,
     "robot/feedback": 500.0,
+    "dms/state": 100.0,
+    "dms/behavior": 50.0,
+    "dms/decisions": 50.0,
+    "dms/config": 10.0,
+    "users/*": 50.0,
+    "agenda/*": 50.0,
 }
-"""Far above what a camera, a microphone or an app sends; a flood beyond is dropped."""
+"""Far above what a camera, a joint encoder, a microphone, an app or a viewer sends; a
+flood beyond is dropped (a query over its cap gets an error reply at once)."""
+
+
+def _positive_per_key(
+    value: dict[str, float | None], known: tuple[str, ...], kind: str
+) -> dict[str, float | None]:
+    for key, amount in value.items():
+        if key not in known:
+            raise ValueError(f"{key!r} is not {kind}")
+        if amount is not None and amount <= 0:
+            raise ValueError(f"{key}: must be > 0")
+    return value
 
 
 class InputSettings(_Section):
     stale_after_s: dict[str, float | None] = Field(default_factory=lambda: _STALE_AFTER_S.copy())
     rate_cap_per_s: dict[str, float | None] = Field(default_factory=lambda: _RATE_CAP_PER_S.copy())
-    """Messages a second admitted per input key (None: no cap); the rest are dropped and
-    counted, and the counts reported on ``dms/errors`` once a second."""
+    """Messages (or queries) a second admitted per input key or queryable (None: no cap);
+    the rest are dropped and counted, and the counts reported on ``dms/errors`` once a
+    second."""
+    error_reports_per_s: float = Field(20.0, gt=0.0)
+    """Rejected messages reported on ``dms/errors`` (and logged) a second per key; the
+    rest are counted, and the count reported once a second."""
+    max_param_names: int = Field(256, ge=1)
+    """Distinct names kept per params key (``params/robot``, ``params/env``); past it the
+    name set longest ago is dropped, and the count reported once a second."""
 
-    @field_validator("stale_after_s", "rate_cap_per_s")
+    @field_validator("stale_after_s")
     @classmethod
-    def _known_keys(cls, value: dict[str, float | None]) -> dict[str, float | None]:
-        for key, amount in value.items():
-            if key not in INPUT_KEYS:
-                raise ValueError(f"{key!r} is not an input key")
-            if amount is not None and amount <= 0:
-                raise ValueError(f"{key}: must be > 0")
-        return value
+    def _input_keys(cls, value: dict[str, float | None]) -> dict[str, float | None]:
+        return _positive_per_key(value, INPUT_KEYS, "an input key")
+
+    @field_validator("rate_cap_per_s")
+    @classmethod
+    def _capped_keys(cls, value: dict[str, float | None]) -> dict[str, float | None]:
+        return _positive_per_key(value, INPUT_KEYS + QUERY_CAP_KEYS, "an input key or a queryable")
 
     def rate_caps(self) -> dict[str, float]:
         """The caps in force: the defaults, overridden by the file, without the None ones."""
         merged = {**_RATE_CAP_PER_S, **self.rate_cap_per_s}
         return {key: rate for key, rate in merged.items() if rate is not None}
+
+    def report_caps(self) -> dict[str, float]:
+        """The cap on rejection reports, the same for every input key and queryable."""
+        return dict.fromkeys(INPUT_KEYS + QUERY_CAP_KEYS, self.error_reports_per_s)
 
 
 class PrivacySettings(_Section):
@@ -96,7 +138,7 @@ class PrivacySettings(_Section):
 
 
 class FrameSettings(_Section):
-    """How long a perceived frame is live (issue 16): after it, a behavior sees its last
+    """How long a perceived frame is live: after it, a behavior sees its last
     known pose with its age, and ``attend`` holds the gaze, then returns to neutral."""
 
     face_live_s: float = Field(2.0, gt=0.0)
@@ -110,6 +152,11 @@ class ControllerSettings(_Section):
     confirm_timeout_s: float = Field(10.0, gt=0.0)
     """How long the shoulder dialog waits for "continue" or "stop" before resuming."""
     question_timeout_s: float = Field(15.0, gt=0.0)
+    menu_timeout_s: float = Field(120.0, gt=0.0)
+    """A menu of activities with no answer for this long ends: the user is not answering
+    (a failure of the paper's Table 4) and the robot chooses. It must leave time to look
+    through the menu: the paper's time between activities implies 60-90 s for first-time
+    users (docs/simulation.md). It counts again from each try at an answer."""
     feedback_probability: float = Field(0.5, ge=0.0, le=1.0)
     session_questions: int = Field(4, ge=0, le=50)
     """General questions asked when a session starts (the paper: 4-5)."""
@@ -140,6 +187,12 @@ class ControllerSettings(_Section):
     """Commands in a row the robot never acknowledges before it is marked offline."""
     offline_retry_max_s: float = Field(300.0, gt=0.0)
     """While offline, an activity is tried again after a wait that doubles up to this."""
+    new_user_after_s: float = Field(3.0, ge=0.0)
+    """A user id the store does not know gets a profile once seen ready and engaged this
+    long without a break; until then nothing is stored for it (0: at once)."""
+    new_profiles_per_hour: int = Field(20, ge=0)
+    """New profiles made at most an hour; the ids over it are served without a profile,
+    and their count reported on ``dms/errors``."""
 
     @field_validator("user_initiative")
     @classmethod
@@ -158,6 +211,17 @@ class RulesSettings(_Section):
 class BehaviorsSettings(_Section):
     folder: Path | None = None
     """A folder of behavior files; None means the shipped behaviors."""
+
+
+class StorageSettings(_Section):
+    """``[storage]``: where acknowledged writes wait when the database cannot take them."""
+
+    spool_dir: Path | None = None
+    """A folder on another filesystem for the write spool, used when the one beside the
+    database cannot be written (a full disk, a read-only or failing one); None: none."""
+    memory_bound: int = Field(default=10_000, ge=1)
+    """Writes kept in memory when no spool can be written; past it new writes are
+    dropped, and that is reported."""
 
 
 class Settings(_Section):
@@ -180,6 +244,7 @@ class Settings(_Section):
     behaviors: BehaviorsSettings = Field(default_factory=BehaviorsSettings)
     privacy: PrivacySettings = Field(default_factory=PrivacySettings)
     frames: FrameSettings = Field(default_factory=FrameSettings)
+    storage: StorageSettings = Field(default_factory=StorageSettings)
     motivation: dict[str, Any] = Field(default_factory=dict)
     """Validated by the motivation package's own model."""
     source: Path | None = Field(default=None, exclude=True)
@@ -234,13 +299,43 @@ def env_name(loc: Sequence[int | str]) -> str:
     return ENV_PREFIX + ENV_NESTED.join(str(part) for part in loc).upper()
 
 
+MAX_LISTED = 10
+"""Wrong settings listed in the one line of a configuration error; the rest are counted."""
+
+
 def _describe(error: ValidationError, where: str, env: dict[str, Any] | None = None) -> str:
-    first = error.errors(include_url=False)[0]
-    field = ".".join(str(part) for part in first["loc"]) or "(top level)"
-    more = f" (and {error.error_count() - 1} more)" if error.error_count() > 1 else ""
-    if env and _given(env, first["loc"]):
-        where = f"{env_name(first['loc'][:2])} (environment)"
-    return f"{where}: {field}: {first['msg']}{more}"
+    """Every wrong setting on one line, each with its place (the file, or the variable
+    that gave it) and, for a misspelt name, the name it probably meant."""
+    parts: list[str] = []
+    shown = ""
+    for detail in error.errors(include_url=False)[:MAX_LISTED]:
+        loc = detail["loc"]
+        field = ".".join(str(part) for part in loc) or "(top level)"
+        place = f"{env_name(loc[:2])} (environment)" if env and _given(env, loc) else where
+        message = detail["msg"].removeprefix("Value error, ")
+        if detail["type"] == "extra_forbidden":
+            message += _did_you_mean(loc)
+        parts.append(f"{field}: {message}" if place == shown else f"{place}: {field}: {message}")
+        shown = place
+    more = error.error_count() - MAX_LISTED
+    tail = f"; and {more} more" if more > 0 else ""
+    return "; ".join(parts) + tail
+
+
+def _did_you_mean(loc: Sequence[int | str]) -> str:
+    """`` (did you mean NAME?)`` for a misspelt setting at ``loc``, else ``""``."""
+    from difflib import get_close_matches
+
+    model: type[BaseModel] = Settings
+    for part in loc[:-1]:
+        info = model.model_fields.get(str(part))
+        annotation = info.annotation if info is not None else None
+        if not (isinstance(annotation, type) and issubclass(annotation, BaseModel)):
+            return ""
+        model = annotation
+    names = [name for name, info in model.model_fields.items() if not info.exclude]
+    close = get_close_matches(str(loc[-1]), names, n=1, cutoff=0.6)
+    return f" (did you mean {close[0]}?)" if close else ""
 
 
 def _given(data: dict[str, Any], loc: Sequence[int | str]) -> bool:
@@ -325,7 +420,8 @@ def load_config(
 
 
 def _resolve_paths(data: dict[str, Any], base: Path) -> None:
-    """The file's relative paths (rules, behaviors) are relative to the file's folder."""
+    """The file's relative paths (rules, behaviors, the spare spool folder) are relative
+    to the file's folder."""
     rules = data.get("rules")
     if isinstance(rules, dict) and isinstance(rules.get("files"), list):
         rules["files"] = [
@@ -337,3 +433,8 @@ def _resolve_paths(data: dict[str, Any], base: Path) -> None:
         folder = Path(behaviors["folder"])
         if not folder.is_absolute():
             behaviors["folder"] = str(base / folder)
+    storage = data.get("storage")
+    if isinstance(storage, dict) and isinstance(storage.get("spool_dir"), str):
+        spool_dir = Path(storage["spool_dir"])
+        if not spool_dir.is_absolute():
+            storage["spool_dir"] = str(base / spool_dir)

@@ -4,7 +4,9 @@ The loop ticks at 2 Hz against monotonic deadlines and at once when an urgent in
 (a touch, a request, a screen choice, speech) arrives. Each tick's decisions are
 published on ``dms/decision`` and printed, then the state on ``dms/state``. The
 ``alive/dms`` token is declared only once everything is ready. SIGINT and SIGTERM
-stop the running activity, flush the store and exit 0; SIGHUP reloads the rules and the behaviors.
+stop the running activity and flush the store; the exit code is then 130 after SIGINT
+(Ctrl-C, as a shell reports it) and 0 after SIGTERM (a supervisor's stop). SIGHUP
+reloads the rules and the behaviors.
 
 Under systemd (``Type=notify``) it says READY once ``alive/dms`` is declared and feeds
 the watchdog from the tick loop (:mod:`dms.notify`). Its log goes to stderr at
@@ -17,6 +19,7 @@ import logging
 import random
 import signal
 import threading
+from collections import deque
 from collections.abc import Callable
 from pathlib import Path
 from types import FrameType
@@ -56,6 +59,10 @@ QueryHandler = Callable[[str, bytes | None], tuple[bool, Any]]
 
 CONFIG_KEY = "dms/config"
 """The queryable that answers with :func:`config_snapshot` (``dms record`` stores it)."""
+DECISIONS_KEY = "dms/decisions"
+"""The queryable that answers with the last :data:`RECENT_DECISIONS` decisions (a viewer
+opened mid-session shows them)."""
+RECENT_DECISIONS = 50
 
 NOT_SERVED = (
     "personal data is not served to other processes: set [privacy] serve_profiles = true"
@@ -161,7 +168,10 @@ class Daemon:
         self.notifier = notifier or Notifier()
         self._missed_logged = 0
         self._said: list[str] = []  # what the robot said this tick, printed after the decisions
+        self._recent: deque[dict[str, Any]] = deque(maxlen=RECENT_DECISIONS)
         self.clock: Clock = clock or RealClock()
+        self.started = iso(self.clock.now())
+        """When this daemon started (the state's ``started``)."""
         self.print_decisions = print_decisions
         self.bus = bus or ZenohBus(
             settings.robot_id,
@@ -170,6 +180,10 @@ class Daemon:
         self.ticker = Ticker(self.clock, settings.controller.tick_period_s)
         self._lock = threading.Lock()
         self.rate_caps = RateCaps(settings.inputs.rate_caps())
+        self.report_caps = RateCaps(
+            settings.inputs.report_caps(), label="report cap", noun="reports"
+        )
+        """How many rejected messages a second are reported one by one, per key."""
         self.errors_published = 0
         robot: RobotPort
         self.zenoh_robot: ZenohRobot | None = None
@@ -217,33 +231,40 @@ class Daemon:
         serves any number of them with one reload in the background.
         """
         if not self.rate_caps.admit(key, self.clock.monotonic()):
+            log.debug("%s: over its rate cap, dropped", key)
             return
         try:
             self._take_input(key, raw)
         except Exception as error:  # a Zenoh callback must never die on one message
-            log.exception("input on %s", key)
-            self.report_error(key, f"not handled: {type(error).__name__}: {error}")
+            if self.report_caps.admit(key, self.clock.monotonic()):
+                log.exception("input on %s", key)
+                self.report_error(key, f"not handled: {type(error).__name__}: {error}")
 
     def _take_input(self, key: str, raw: bytes) -> None:
         try:
             message = parse_input(key, raw)
         except InputRejected as error:
             self.stack.inputs.reject()
-            self.report_error(key, str(error))
+            if self.report_caps.admit(key, self.clock.monotonic()):
+                self.report_error(key, str(error))
             return
         if isinstance(message, RobotFeedback):
             if self.zenoh_robot is not None:
                 self.zenoh_robot.feed(message)
             return
         if isinstance(message, Request) and message.action == "reload_rules":
+            log.debug("request: reload asked by %s", message.by or "request")
             self.reloader.request()
             return
         self.stack.inputs.accept(key, message, self.clock.monotonic())
-        if key in keys.URGENT_INPUTS:
+        urgent = key in keys.URGENT_INPUTS
+        log.debug("%s accepted%s", key, ": urgent, the tick runs now" if urgent else "")
+        if urgent:
             self.ticker.wake()
 
     def on_liveliness(self, key: str, alive: bool) -> None:
         if key != "dms":
+            log.debug("token alive/%s %s", key, "declared" if alive else "gone: input missing")
             self.stack.inputs.liveliness(key, alive)
         if key == keys.ROBOT_FEEDBACK and alive:  # the robot's token: it is reachable again
             self.stack.expression.robot_seen()
@@ -289,7 +310,11 @@ class Daemon:
         """``handler`` that answers every query: an exception becomes an error reply
         (and one line on ``dms/errors``), never silence and never a dead callback."""
 
+        capped = key + "*" if key.endswith("/") else key  # users/* for every users/<id>
+
         def serve(query_key: str, payload: bytes | None) -> tuple[bool, Any]:
+            if not self.rate_caps.admit(capped, self.clock.monotonic()):
+                return False, {"error": f"rate cap {self.rate_caps.cap(capped):g}/s: refused"}
             try:
                 return handler(query_key, payload)
             except (DmsError, InvalidIdentifier) as refused:  # QueryRefused among them
@@ -297,11 +322,16 @@ class Daemon:
             except RecursionError:
                 return False, {"error": "payload nested too deeply"}
             except Exception as error:
-                log.exception("query %s", query_key)
-                self.report_error(key, f"query failed: {type(error).__name__}: {error}")
+                if self.report_caps.admit(capped, self.clock.monotonic()):
+                    log.exception("query %s", query_key)
+                    self.report_error(key, f"query failed: {type(error).__name__}: {error}")
                 return False, {"error": f"internal error: {type(error).__name__}"}
 
         return serve
+
+    def _query_decisions(self, _key: str, _payload: bytes | None) -> tuple[bool, Any]:
+        # A copy in one C call: the loop appends from its own thread.
+        return True, {"decisions": list(self._recent)}
 
     def _query_config(self, _key: str, _payload: bytes | None) -> tuple[bool, Any]:
         return True, config_snapshot(self.settings, self.stack.library)
@@ -327,11 +357,18 @@ class Daemon:
             keys.AGENDA_PREFIX: self._query_agenda,
             keys.DMS_BEHAVIOR: self._query_behavior,
             CONFIG_KEY: self._query_config,
+            DECISIONS_KEY: self._query_decisions,
         }
         self.bus.start(
             self.on_input,
             self.on_liveliness,
             {key: self._guarded(key, handler) for key, handler in queries.items()},
+        )
+        log.debug(
+            "bus: subscribed to %d input keys and the alive/** tokens under robots/%s/; serving %s",
+            len(keys.INPUT_KEYS),
+            self.settings.robot_id,
+            ", ".join(queries),
         )
         self.reloader.start()
         for key, warning in self.stack.warnings:
@@ -349,8 +386,7 @@ class Daemon:
     def _run_tick(self, urgent: bool) -> TickRecord | None:
         """One tick, published; a fault the controller's own barrier missed is reported
         and the loop goes on (the state of the last good tick stands)."""
-        for key, line in self.rate_caps.due_reports(self.clock.monotonic()):
-            self.report_error(key, line)
+        self._report_drops()
         try:
             with self._lock:
                 record = self.stack.controller.tick(
@@ -363,9 +399,27 @@ class Daemon:
         self._publish(record)
         return record
 
+    def _report_drops(self) -> None:
+        """Once a second at most, what the input bounds dropped since the last report:
+        one line per key, with counts, however large the flood."""
+        monotonic = self.clock.monotonic()
+        for key, line in self.rate_caps.due_reports(monotonic):
+            self.report_error(key, line)
+        for key, line in self.report_caps.due_reports(monotonic):
+            self.report_error(key, line)
+        bound = self.stack.inputs.max_param_names
+        for drops in self.stack.inputs.params_dropped.due(monotonic):
+            self.report_error(
+                drops.key,
+                f"more than {bound} names: dropped the {drops.count} set longest ago"
+                f" ({drops.total} since start)",
+            )
+
     def _publish(self, record: TickRecord) -> None:
         for decision in record.decisions:
-            self.bus.publish(keys.DMS_DECISION, decision.model_dump(mode="json"))
+            dump = decision.model_dump(mode="json")
+            self.bus.publish(keys.DMS_DECISION, dump)
+            self._recent.append(dump)
             if self.print_decisions:
                 self._echo(format_decision(decision))
         for line in self._said:
@@ -379,11 +433,19 @@ class Daemon:
 
     def _stamped(self, state: DmsState) -> DmsState:
         """The controller's state with what only the daemon knows (its reloads, the
-        writes not stored yet)."""
-        profiles = self.stack.controller.deps.profiles
-        pending = profiles.pending_writes if profiles is not None else 0
+        writes not stored yet, when it started)."""
+        profiles, agenda = self.stack.controller.deps.profiles, self.stack.agenda
+        writers = [profiles.writer.health] if profiles is not None else []
+        if agenda is not None:
+            writers.append(agenda.health)
+        degraded = any(health.status == "degraded" for health in writers)
         return state.model_copy(
-            update={"reloads": self.reloader.reloads, "pending_writes": pending}
+            update={
+                "reloads": self.reloader.reloads,
+                "pending_writes": sum(health.pending for health in writers),
+                "storage": "degraded" if degraded else "ok",
+                "started": self.started,
+            }
         )
 
     def _echo(self, line: str) -> None:
@@ -449,7 +511,7 @@ def run_daemon(
     sim_robot: Callable[[int], RobotPort] | None = None,
     start_visitor: Callable[[str, Settings], Callable[[], None]] | None = None,
 ) -> int:
-    """Run until SIGINT/SIGTERM; return the exit code.
+    """Run until SIGINT/SIGTERM; return the exit code (130 after SIGINT, else 0).
 
     The composition root (dms/cli.py) passes the simulated robot and the visitor starter,
     so that the daemon does not import ``sim``.
@@ -457,7 +519,10 @@ def run_daemon(
     setup_logging(settings.log_level, settings.log_format, robot_id=settings.robot_id)
     daemon = Daemon(settings, print_decisions=print_decisions, sim_robot=sim_robot)
 
-    def on_stop(_signum: int, _frame: FrameType | None) -> None:
+    stopped_by: list[int] = []
+
+    def on_stop(signum: int, _frame: FrameType | None) -> None:
+        stopped_by.append(signum)
         daemon.stop()
 
     def on_hup(_signum: int, _frame: FrameType | None) -> None:
@@ -485,4 +550,4 @@ def run_daemon(
         if stop_visitor is not None:
             stop_visitor()
         daemon.close()
-    return 0
+    return 128 + signal.SIGINT if signal.SIGINT in stopped_by else 0

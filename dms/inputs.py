@@ -12,6 +12,7 @@ inputs are not considered in decisions.
 
 from __future__ import annotations
 
+import itertools
 import json
 import threading
 from collections import deque
@@ -24,12 +25,18 @@ from pydantic import BaseModel, ValidationError
 from dms.kernel import keys
 from dms.kernel.errors import DmsError
 from dms.kernel.messages import INBOUND_BY_KEY, ProfileParams
+from dms.rate_caps import DropTally
 
 MAX_PAYLOAD_BYTES = 64 * 1024
 """Larger payloads are rejected before parsing: nothing legitimate is this big."""
 
 MAX_EVENTS_QUEUED = 256
 """Event inputs beyond this many between two ticks are dropped (oldest first) and counted."""
+
+MAX_PARAM_NAMES = 256
+"""Distinct names kept per params key by default (``[inputs] max_param_names``). A name
+is at most 64 characters and a text value 1,024 (:class:`ProfileParams`), so a module
+that makes up new names cannot grow the daemon past a few hundred kilobytes."""
 
 InputStatus = Literal["ok", "stale", "missing"]
 
@@ -119,7 +126,14 @@ class InputCounters:
 class InputBoard:
     """The latest inputs, their freshness, and the queue of events for the next tick."""
 
-    def __init__(self, stale_after_s: Mapping[str, float | None] | None = None) -> None:
+    def __init__(
+        self,
+        stale_after_s: Mapping[str, float | None] | None = None,
+        max_param_names: int = MAX_PARAM_NAMES,
+    ) -> None:
+        """``max_param_names``: distinct names kept per params key; past it, the name set
+        longest ago is dropped and counted in :attr:`params_dropped` (reported once a
+        second by the daemon)."""
         defaults: dict[str, float | None] = {
             keys.PERCEPTION_USER: 5.0,
             keys.PERCEPTION_OBJECTS: 5.0,
@@ -144,6 +158,9 @@ class InputBoard:
         self._events: deque[InputEvent] = deque(maxlen=MAX_EVENTS_QUEUED)
         self._robot_params: dict[str, Any] = {}
         self._env_params: dict[str, Any] = {}
+        self.max_param_names = max_param_names
+        self.params_dropped = DropTally()
+        """Names dropped per params key for the bound, oldest first."""
         self.counters = InputCounters()
         self._fresh: set[str] = set()
 
@@ -157,11 +174,22 @@ class InputBoard:
             self._fresh.add(key)
             if isinstance(message, ProfileParams):
                 target = self._robot_params if key == keys.PARAMS_ROBOT else self._env_params
-                target.update(message.values)
+                self._merge_params(key, target, message.values)
             if key in _EVENT_KEYS:
                 if len(self._events) == self._events.maxlen:
                     self.counters.dropped_events += 1
                 self._events.append(InputEvent(key, message, received))
+
+    def _merge_params(self, key: str, target: dict[str, Any], values: Mapping[str, Any]) -> None:
+        """Set ``values`` in ``target`` as its newest names; drop the oldest past the bound."""
+        for name, value in values.items():
+            target.pop(name, None)  # set again: it becomes the newest
+            target[name] = value
+        over = len(target) - self.max_param_names
+        if over > 0:
+            for name in list(itertools.islice(target, over)):
+                del target[name]
+            self.params_dropped.add(key, over)
 
     def reject(self) -> None:
         with self._lock:
@@ -183,27 +211,12 @@ class InputBoard:
                 elif key == keys.PARAMS_ENV:
                     self._env_params.clear()
 
-    def status_of(self, key: str, monotonic_now: float) -> InputStatus:
-        with self._lock:
-            return self._status(key, self._slots[key], monotonic_now)
-
-    def _status(self, key: str, slot: _Slot, monotonic_now: float) -> InputStatus:
-        if slot.token_seen and not slot.token_alive:
-            return "missing"
-        if key in _EVENT_KEYS:
-            return "ok"
-        if slot.value is None or slot.updated is None:
-            return "missing"
-        limit = self._stale_after.get(key)
-        if limit is not None and monotonic_now - slot.updated > limit:
-            return "stale"
-        return "ok"
-
     def take(self, monotonic_now: float) -> InputSnapshot:
         """The inputs for one tick; event inputs are handed over once.
 
-        Each input's status is :meth:`_status`'s, worked out inline over slots paired with
-        their limits once (this runs every tick: issue 14)."""
+        An input whose token went away is missing; a state input is missing until its
+        first message and stale once older than its limit; an event input is ok while
+        its token stands or once a message came."""
         with self._lock:
             status: dict[str, InputStatus] = {}
             values: dict[str, BaseModel] = {}

@@ -25,10 +25,11 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from dms.storage import QUEUE_SIZE, RETRY_EVERY_S, StorageWriter, Waiter, Write
+from dms.storage import QUEUE_SIZE, RETRY_EVERY_S, StorageWriter, Waiter, Write, sqlite_file
 from memory import Profile, ProfileStore
+from memory.backlog import MEMORY_BOUND
 from memory.db import side_file
-from memory.errors import StoreRefused
+from memory.errors import ProfileNotFound, StoreRefused
 
 __all__ = ["LOAD_WAIT_S", "RETRY_EVERY_S", "ProfileService"]
 
@@ -38,6 +39,9 @@ LOAD_WAIT_S = 0.05
 """How long :meth:`ProfileService.load` waits for a profile read off the tick: long
 enough for a healthy database, so the session starts with the profile in the same tick;
 short enough that a locked or absent database costs the tick nothing noticeable."""
+
+_FIND = "find"
+"""The read behind :meth:`ProfileService.stored` (the store's ``get`` without the error)."""
 
 _RECORD_ACTIVITY_SESSION = 7  # the position of session_id in ProfileStore.record_activity
 
@@ -67,13 +71,20 @@ class ProfileService:
         spool_path: Path | None = None,
         quarantine_path: Path | None = None,
         owner: str | None = None,
+        spool_dir: Path | None = None,
+        memory_bound: int = MEMORY_BOUND,
     ) -> None:
         """``owner``: the robot id, so that robots sharing a database on one machine keep
-        their own spool and quarantine files (:func:`memory.db.side_file`)."""
+        their own spool and quarantine files (:func:`memory.db.side_file`).
+        ``spool_dir``, ``memory_bound``: where writes wait when the spool beside the
+        database cannot be written (``[storage]``, :class:`dms.storage.StorageWriter`)."""
         self.store = store
         self._cache: dict[str, Profile] = {}
         self._cache_lock = threading.Lock()
         self._met: set[str] = set()
+        self.newcomer: str | None = None
+        """The user in front of the robot whose profile is not stored yet (the controller
+        stores it once she qualifies): met, so the agenda takes items for her."""
         self.writer = StorageWriter(
             self._apply,
             spool_path or side_file(store.url, "spool", owner),
@@ -82,6 +93,9 @@ class ProfileService:
             self._done,
             threaded=threaded,
             queue_size=queue_size,
+            spool_dir=spool_dir,
+            memory_bound=memory_bound,
+            database_file=sqlite_file(store.url),
         )
         self.writer.start()
 
@@ -108,9 +122,18 @@ class ProfileService:
         waiter.wait(wait_s)
         return waiter.result
 
+    def stored(self, user_id: str, wait_s: float = LOAD_WAIT_S) -> bool | None:
+        """Whether the store has a profile for ``user_id`` (read off the tick, in order
+        behind the writes queued before it); None when the read has not landed in time."""
+        found = self.ask(_FIND, user_id, wait_s=wait_s)
+        return found if isinstance(found, bool) else None
+
     def met(self, user_id: str) -> bool:
         """The robot has met ``user_id`` in this run: their profile exists, or is being
-        written (the agenda accepts items for them before the write lands)."""
+        written, or they are in front of the robot not yet stored (:attr:`newcomer`); the
+        agenda accepts items for them before the write lands."""
+        if user_id == self.newcomer:
+            return True
         with self._cache_lock:
             return user_id in self._met or user_id in self._cache
 
@@ -151,6 +174,11 @@ class ProfileService:
     def _apply(self, write: Write) -> Any:
         """Run one write against the store (the writer's thread)."""
         args, kwargs = list(write.args), dict(write.kwargs)
+        if write.method == _FIND:
+            try:
+                return self.store.get(str(args[0])) is not None
+            except ProfileNotFound:
+                return False
         if write.method == "start_session":
             key = str(kwargs.pop("key"))
             kwargs["write_id"] = key

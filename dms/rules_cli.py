@@ -1,17 +1,21 @@
-"""Command line of DMSL (``dms rules check|eval|schema``), mounted by dms.cli."""
+"""Command line of DMSL (``dms rules check|eval|schema``), mounted by dms.cli.
+
+Each command imports the rule language when it runs, so that ``dms rules --help`` is quick.
+"""
 
 from __future__ import annotations
 
 import json
 import sys
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
 from dms.kernel.errors import DmsError
-from dms.rules.loader import lint_files, load_rules
-from dms.rules.schema import ParameterSchema, TypeName
+
+if TYPE_CHECKING:
+    from dms.rules.schema import ParameterSchema, TypeName
 
 app = typer.Typer(no_args_is_help=True)
 
@@ -91,6 +95,9 @@ def check(
 
     Warnings (``FILE:LINE:COL: warning: ...``) go to stderr and leave the exit code at 0.
     """
+    from dms.rules.loader import lint_files
+    from dms.rules.schema import ParameterSchema
+
     loaded = ParameterSchema.load(schema) if schema is not None else None
     problems, warnings = lint_files(files, loaded)
     for warning in warnings:
@@ -119,6 +126,8 @@ def eval_command(
     ] = None,
 ) -> None:
     """Evaluate COMPONENT and print {"activate": [...], "cancel": [...], "missing": [...]}."""
+    from dms.rules.loader import load_rules
+
     values = parse_params(params, param or [])
     rules = load_rules([file])
     if not rules.defines(component):
@@ -129,6 +138,8 @@ def eval_command(
 
 def daemon_schema() -> ParameterSchema:
     """The parameters the daemon binds: user from the profile model, robot, env."""
+    from dms.rules.schema import ParameterSchema
+
     try:
         from memory.parameters import (  # type: ignore[import-not-found,unused-ignore]
             user_parameter_types,

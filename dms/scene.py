@@ -5,7 +5,7 @@ Each tick the controller hands :meth:`Scene.update` the inputs that are ok. A ne
 and ``face:<user_id>``; a new ``perception/objects`` moves ``object:<name>`` for each
 object seen. A frame is *live* while it is seen again within ``[frames] face_live_s``
 (``object_live_s``) and *last known* after, with its age: behaviors choose what to do
-with an old pose (seed 002's task frames). The body's frames follow the joint state:
+with an old pose (the task frames of "ROS Commander"). The body's frames follow the joint state:
 the simulated Mini's own, or the external robot's ``robot/joints``.
 
 Pure and on the caller's clock, like the motivation model: nothing here reads time.

@@ -63,18 +63,14 @@ _FINAL = {
 
 
 class Manager:
-    """Runs the activities of one group. Subclasses add the group's partial decisions."""
+    """Runs the activities of one group; a subclass adds the group's partial decisions."""
 
-    name: ManagerName = ManagerName.GENERAL
-
-    def __init__(self, library: BehaviorLibrary) -> None:
+    def __init__(self, name: ManagerName, library: BehaviorLibrary) -> None:
+        self.name = name
         self._library = library
         self._activity: Activity | None = None
         self._activity_name: str | None = None
         self._winding_down: list[Activity] = []
-        self._last_reply: ManagerReply | None = None
-        """The last running or paused answer of :meth:`tick`, given again while nothing in
-        it changed (most ticks): one object less a tick."""
 
     @property
     def activities(self) -> tuple[str, ...]:
@@ -144,20 +140,12 @@ class Manager:
         except Exception as error:
             log.exception("activity %s raised", self._activity_name)
             return self._finish(ManagerStatus.FAILED, detail=f"{type(error).__name__}: {error}")
-        if status is not ActivityStatus.RUNNING and status in _FINAL:  # no enum hash a tick
+        if status in _FINAL:
             result = activity.result
             return self._finish(_FINAL[status], detail=result.error, redirect=result.redirect)
-        going = ManagerStatus.PAUSED if status is ActivityStatus.PAUSED else ManagerStatus.RUNNING
-        last = self._last_reply
-        if (
-            last is not None
-            and last.status is going
-            and last.activity == self._activity_name
-            and last.state == activity.state_path
-        ):
-            return last  # the same answer as the last tick's (a reply is frozen)
-        reply = self._last_reply = self._reply(going)
-        return reply
+        if status is ActivityStatus.PAUSED:
+            return self._reply(ManagerStatus.PAUSED)
+        return self._reply(ManagerStatus.RUNNING)
 
     def _finish(
         self, status: ManagerStatus, detail: str | None = None, redirect: str | None = None

@@ -1,4 +1,11 @@
-"""The five managers of the paper (Fig. 6), one per group of activities."""
+"""The five managers of the paper (Fig. 6), one per group of activities.
+
+Four only run their group's activities: social (talk and presentation, the activities
+that are conversation), relax (sleep and wait, what the robot does when nothing calls
+for it), cognitive (cognitive stimulation sessions) and general (notifications,
+instructions and the menu; short communications pause the others). The entertainment
+manager also makes a partial decision: which entertainment activity to run.
+"""
 
 from __future__ import annotations
 
@@ -20,7 +27,8 @@ class EntertainmentManager(Manager):
     through the chooser it is given (learned preferences, or a ``ChooseEntertainment`` rule).
     """
 
-    name = ManagerName.ENTERTAINMENT
+    def __init__(self, library: BehaviorLibrary) -> None:
+        super().__init__(ManagerName.ENTERTAINMENT, library)
 
     def choose(
         self,
@@ -34,37 +42,13 @@ class EntertainmentManager(Manager):
         return rng.choice(options or list(ENTERTAINMENT_ACTIVITIES))
 
 
-class SocialManager(Manager):
-    """Talk and presentation: the activities that are conversation."""
-
-    name = ManagerName.SOCIAL
-
-
-class RelaxManager(Manager):
-    """Sleep and wait: what the robot does when nothing calls for it."""
-
-    name = ManagerName.RELAX
-
-
-class CognitiveManager(Manager):
-    """Cognitive stimulation sessions."""
-
-    name = ManagerName.COGNITIVE
-
-
-class GeneralManager(Manager):
-    """Notifications, instructions and the menu; short communications pause the others."""
-
-    name = ManagerName.GENERAL
-
-
 def make_managers(library: BehaviorLibrary) -> dict[ManagerName, Manager]:
     """One manager of each kind, sharing the behavior library."""
-    managers: list[Manager] = [
+    managers = [
         EntertainmentManager(library),
-        SocialManager(library),
-        RelaxManager(library),
-        CognitiveManager(library),
-        GeneralManager(library),
+        Manager(ManagerName.SOCIAL, library),
+        Manager(ManagerName.RELAX, library),
+        Manager(ManagerName.COGNITIVE, library),
+        Manager(ManagerName.GENERAL, library),
     ]
     return {manager.name: manager for manager in managers}

@@ -92,6 +92,20 @@ def make_engine(url: str, busy_timeout_s: float | None = None, **kwargs: Any) ->
     return create_engine(url, pool_pre_ping=True, **kwargs)
 
 
+def dialect_module(dialect: str) -> Any:
+    """SQLAlchemy's module of ``dialect`` (``sqlite`` or ``postgresql``), for its upserts.
+
+    Imported on use: a daemon on SQLite never loads PostgreSQL's (40-110 ms of its start).
+    """
+    if dialect == "sqlite":
+        from sqlalchemy.dialects import sqlite
+
+        return sqlite
+    from sqlalchemy.dialects import postgresql
+
+    return postgresql
+
+
 def _sqlite_pragmas(dbapi_connection: Any, timeout_ms: int) -> None:
     cursor = dbapi_connection.cursor()
     cursor.execute("PRAGMA journal_mode=WAL")

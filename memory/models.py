@@ -181,7 +181,7 @@ class AppliedWriteRow(Base):
     A write replayed from a spool (after a crash, or the in-flight write of a writer
     that did not finish) finds its id here and is not applied again. ``result`` keeps
     what the write returned when a replay needs it (the id of a session it started).
-    Old rows are pruned (:data:`memory.store.APPLIED_KEEP_DAYS`).
+    Old rows are pruned (:data:`memory.writes.APPLIED_KEEP_DAYS`).
     """
 
     __tablename__ = "applied_writes"

@@ -98,8 +98,9 @@ FIELDS: dict[str, FieldRule] = {
 """The profile's fixed fields (columns of ``users``), in ``params.user`` order."""
 
 ALIASES = {"gender": "sex", "favoriteroom": "favorite_room"}
-"""Other names a caller may use for a field (the personas say ``gender``, seed 000
-``favoriteroom``)."""
+"""Other names a caller may use for a field (the personas say ``gender``; the users of
+"Combining Finite State Machine and Decision-Making Tools for Adaptable Robot Behavior"
+have a ``favoriteroom``)."""
 
 RESERVED = frozenset({"id", "user_id", "likes", "created_at", "updated_at", "version", "write_id"})
 ATTRIBUTE_NAME = re.compile(r"^[a-z][a-z0-9_]{0,49}$")

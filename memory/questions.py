@@ -206,7 +206,7 @@ class QuestionBank:
     def default(cls) -> QuestionBank:
         """The built-in bank: the name, then the question on initiative (it seeds the
         proactivity estimate, which sets the mode of the user's very first choice: the
-        seed's step 6 reads it before every choice), then the features the preference
+        paper's step 6 reads it before every choice), then the features the preference
         predictor uses, then the rest."""
 
         def entry(

@@ -147,7 +147,7 @@ def list_sessions(db: DbOption = None, since: SinceOption = None) -> None:
                 ).rstrip()
             )
         return
-    table = Table(title="Sessions (Table 4 of seed 001, measured by the daemon)")
+    table = Table(title="Sessions (the metrics of the paper's Table 4, measured by the daemon)")
     for index, name in enumerate(header):
         table.add_column(name, justify="left" if index < 3 else "right", no_wrap=True)
     for line in body:

@@ -1,13 +1,19 @@
 """Durable local files for writes the database did not take: the spool and the quarantine.
 
-:class:`Spool` is an append-only journal of writes that wait for the database (it is
-locked, or gone): one JSON object per line, ``fsync``'d before :meth:`Spool.append`
-returns, so a write in it survives a kill -9, a power cut and a clean exit, and is
-replayed in order at the next start. Replayed writes are marked done by a line
-``{"done": n}`` (the first ``n`` pending entries are done); the file is emptied when
-nothing is pending and compacted when it is reopened. A ``{"bind": key, "id": n}`` line
-remembers which database id a client-side key got (a session started before the
-outage), so that spooled writes naming the key still find it after a restart.
+A spool is an append-only file of writes that wait for the database (it is locked, or
+gone): one JSON object per line, ``fsync``'d, so a write in it survives a kill -9, a
+power cut and a clean exit, and is replayed in order at the next start
+(:class:`memory.backlog.Backlog` keeps it). Replayed writes are marked done by a line
+``{"done": n}`` (the first ``n`` pending entries are done); :func:`write_spool` compacts
+it. A ``{"bind": key, "id": n}`` line remembers which database id a client-side key got
+(a session started before the outage), so that spooled writes naming the key still find
+it after a restart.
+
+:func:`read_spool` reads such a file for every owner (the profile store's spool, the
+agenda's journal). What it cannot read (a torn last line, bytes that are not UTF-8, a record
+missing its keys or with values of the wrong type) is skipped and kept aside, byte for
+byte, in a ``.bad`` file beside it (:func:`keep_aside`): a damaged file never stops a
+start, and nothing in it is thrown away.
 
 :class:`Quarantine` keeps, one JSON line each, the writes the database refused for good
 (a constraint, a value it cannot store, a missing table), so none is lost silently.
@@ -17,10 +23,13 @@ The files hold JSON-able dicts; what a write means is the caller's business.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import os
 from collections import deque
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -30,7 +39,7 @@ MAX_BINDS = 1000
 """Keys remembered for spooled writes; a session older than this many is long closed."""
 
 
-def _fsync_dir(path: Path) -> None:
+def fsync_dir(path: Path) -> None:
     """Make a new or renamed file's directory entry durable too."""
     try:
         fd = os.open(path.parent, os.O_RDONLY)
@@ -42,126 +51,132 @@ def _fsync_dir(path: Path) -> None:
         os.close(fd)
 
 
-class Spool:
-    """An append-only, fsync'd journal of pending writes, replayed in order.
+@dataclass
+class SpoolContents:
+    """What :func:`read_spool` found in a spool file."""
 
-    Not thread-safe: its owner (the storage writer) serializes calls.
+    pending: deque[dict[str, Any]] = field(default_factory=deque)
+    """Entries not yet done, oldest first."""
+    binds: dict[str, int] = field(default_factory=dict)
+    bad: list[bytes] = field(default_factory=list)
+    """Lines that could not be read, as they were in the file."""
+    kept: Path | None = None
+    """The ``.bad`` file that holds them (:func:`open_spool`); None when it could not be
+    written (they are in the log)."""
+
+
+def _remember(binds: dict[str, int], key: str, value: int) -> None:
+    binds[key] = value
+    if len(binds) > MAX_BINDS:
+        del binds[next(iter(binds))]
+
+
+def read_spool(path: Path, check: Callable[[dict[str, Any]], bool] | None = None) -> SpoolContents:
+    """The pending entries and binds of the spool file at ``path``.
+
+    ``check`` tells whether an entry is one its owner can use (its keys, their types); a
+    line that is not a JSON object in UTF-8, a ``done`` or ``bind`` line of the wrong
+    shape, or an entry ``check`` refuses goes to :attr:`SpoolContents.bad`. Raises
+    OSError only when the file cannot be read at all.
     """
-
-    def __init__(self, path: Path) -> None:
-        self.path = path
-        self.pending: deque[dict[str, Any]] = deque()
-        """Entries not yet done, oldest first."""
-        self.binds: dict[str, int] = {}
-        self.damaged_lines = 0
-        """Lines that could not be read back (a torn last line after a crash)."""
-        if path.exists():
-            self._read()
-            self._rewrite()
-        self._file = path.open("a", encoding="utf-8")
-
-    def _read(self) -> None:
-        with self.path.open(encoding="utf-8") as lines:
-            for line in lines:
-                try:
-                    entry = json.loads(line)
-                except json.JSONDecodeError:
-                    self.damaged_lines += 1  # only a torn last line: appends are whole lines
+    contents = SpoolContents()
+    with path.open("rb") as lines:
+        for raw in lines:
+            if not raw.strip():
+                continue
+            try:
+                entry = json.loads(raw.decode("utf-8"))
+            except ValueError:  # a torn line, or bytes that are not UTF-8
+                contents.bad.append(raw)
+                continue
+            if not isinstance(entry, dict):
+                contents.bad.append(raw)
+            elif "done" in entry:
+                count = entry["done"]
+                if not isinstance(count, int) or isinstance(count, bool) or count < 0:
+                    contents.bad.append(raw)
                     continue
-                if not isinstance(entry, dict):
-                    self.damaged_lines += 1
-                elif "done" in entry:
-                    for _ in range(min(int(entry["done"]), len(self.pending))):
-                        self.pending.popleft()
-                elif "bind" in entry:
-                    self._remember(str(entry["bind"]), int(entry["id"]))
-                else:
-                    self.pending.append(entry)
-        if self.damaged_lines:
-            log.warning("%s: %d unreadable line(s) skipped", self.path, self.damaged_lines)
+                for _ in range(min(count, len(contents.pending))):
+                    contents.pending.popleft()
+            elif "bind" in entry:
+                key, value = entry["bind"], entry.get("id")
+                if (
+                    not isinstance(key, str)
+                    or not isinstance(value, int)
+                    or isinstance(value, bool)
+                ):
+                    contents.bad.append(raw)
+                    continue
+                _remember(contents.binds, key, value)
+            elif check is None or check(entry):
+                contents.pending.append(entry)
+            else:
+                contents.bad.append(raw)
+    return contents
 
-    def _remember(self, key: str, value: int) -> None:
-        self.binds[key] = value
-        if len(self.binds) > MAX_BINDS:
-            del self.binds[next(iter(self.binds))]
 
-    def _rewrite(self) -> None:
-        """Write the pending entries (and binds) to a new file and swap it in atomically."""
-        if not self.pending:
-            self.binds.clear()
-        temporary = self.path.with_name(self.path.name + ".tmp")
+def bad_file(path: Path) -> Path:
+    """Where the unreadable lines of the spool at ``path`` are kept: ``<path>.bad``."""
+    return path.with_name(path.name + ".bad")
+
+
+def keep_aside(path: Path, lines: Iterable[bytes]) -> Path:
+    """Append ``lines`` (unreadable lines of the spool at ``path``) to its ``.bad`` file,
+    fsync'd; returns that file. Raises OSError when it cannot be written."""
+    bad = bad_file(path)
+    new = not bad.exists()
+    with bad.open("ab") as out:
+        out.write(b"".join(line if line.endswith(b"\n") else line + b"\n" for line in lines))
+        out.flush()
+        os.fsync(out.fileno())
+    if new:
+        fsync_dir(bad)
+    return bad
+
+
+def write_spool(path: Path, entries: Iterable[dict[str, Any]], binds: dict[str, int]) -> None:
+    """Write ``binds`` and ``entries`` to a new file and swap it in at ``path`` atomically.
+
+    Raises OSError (the temporary file is removed) when the disk will not take it.
+    """
+    temporary = path.with_name(path.name + ".tmp")
+    try:
         with temporary.open("w", encoding="utf-8") as out:
-            for key, value in self.binds.items():
+            for key, value in binds.items():
                 out.write(json.dumps({"bind": key, "id": value}) + "\n")
-            for entry in self.pending:
+            for entry in entries:
                 out.write(json.dumps(entry) + "\n")
             out.flush()
             os.fsync(out.fileno())
-        os.replace(temporary, self.path)
-        _fsync_dir(self.path)
+        os.replace(temporary, path)
+    except OSError:
+        with contextlib.suppress(OSError):
+            temporary.unlink(missing_ok=True)
+        raise
+    fsync_dir(path)
 
-    def _write(self, entries: list[dict[str, Any]]) -> None:
-        self._file.write("".join(json.dumps(e) + "\n" for e in entries))
-        self._file.flush()
-        os.fsync(self._file.fileno())
 
-    def __len__(self) -> int:
-        return len(self.pending)
-
-    def append(self, entries: list[dict[str, Any]], binds: dict[str, int] | None = None) -> None:
-        """Add ``entries`` at the end, durably, before returning.
-
-        ``binds``: keys already bound in the database that the entries may name; written
-        first when the spool starts, so a restart can resolve them.
-        """
-        if not entries:
-            return
-        head: list[dict[str, Any]] = []
-        if not self.pending and binds:
-            for key, value in list(binds.items())[-MAX_BINDS:]:
-                self._remember(key, value)
-                head.append({"bind": key, "id": value})
-        self._write(head + entries)
-        self.pending.extend(entries)
-
-    def prepend(self, entries: list[dict[str, Any]], binds: dict[str, int] | None = None) -> None:
-        """Put ``entries`` before the pending ones (they were taken earlier); rewrites the file."""
-        if not entries:
-            return
-        if not self.pending:
-            self.append(entries, binds)
-            return
-        for key, value in (binds or {}).items():
-            self._remember(key, value)
-        self.pending.extendleft(reversed(entries))
-        self._file.close()
-        self._rewrite()
-        self._file = self.path.open("a", encoding="utf-8")
-
-    def bind(self, key: str, value: int) -> None:
-        """Remember that ``key`` is ``value`` in the database (durably)."""
-        self._remember(key, value)
-        self._write([{"bind": key, "id": value}])
-
-    def done(self, count: int) -> None:
-        """The first ``count`` pending entries are in the database; empty the file at the end."""
-        count = min(count, len(self.pending))
-        if count <= 0:
-            return
-        for _ in range(count):
-            self.pending.popleft()
-        if self.pending:
-            self._write([{"done": count}])
+def open_spool(path: Path, check: Callable[[dict[str, Any]], bool] | None = None) -> SpoolContents:
+    """:func:`read_spool`, with the unreadable lines kept aside and logged: what an owner
+    calls at start. A ``.bad`` file that cannot be written is logged with the lines."""
+    contents = read_spool(path, check)
+    if contents.bad:
+        try:
+            where = keep_aside(path, contents.bad)
+        except OSError as error:
+            log.error(
+                "%s: %d unreadable line(s) skipped; cannot keep them aside (%s): %r",
+                path,
+                len(contents.bad),
+                error,
+                [line[:200] for line in contents.bad],
+            )
         else:
-            self._file.close()
-            self._rewrite()
-            self._file = self.path.open("a", encoding="utf-8")
-
-    def close(self) -> None:
-        """Close the file; an empty spool leaves no file behind."""
-        self._file.close()
-        if not self.pending and self.path.exists() and self.path.stat().st_size == 0:
-            self.path.unlink()
+            contents.kept = where
+            log.warning(
+                "%s: %d unreadable line(s) skipped and kept in %s", path, len(contents.bad), where
+            )
+    return contents
 
 
 class Quarantine:
@@ -179,7 +194,7 @@ class Quarantine:
             out.flush()
             os.fsync(out.fileno())
         if new:
-            _fsync_dir(self.path)
+            fsync_dir(self.path)
         self.count += 1
 
     def entries(self) -> list[dict[str, Any]]:

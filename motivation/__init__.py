@@ -14,7 +14,7 @@ from motivation.config import (
 )
 from motivation.model import NO_DOMINANT, MotivationModel, MotivationState
 from motivation.stimuli import Percepts, Stimuli
-from motivation.trajectory import Run, advance, dominance_holds, simulate
+from motivation.trajectory import Run, advance, simulate
 
 __all__ = [
     "DEFAULT_DRIVES",
@@ -29,7 +29,6 @@ __all__ = [
     "Stimuli",
     "StimulusConfig",
     "advance",
-    "dominance_holds",
     "load_config",
     "simulate",
 ]

@@ -209,46 +209,6 @@ def advance(
     return run.final
 
 
-BOUND_MARGIN = 1e-6
-"""Points kept clear of a threshold or satiation level by :func:`dominance_holds`: far
-more than the rounding of a month of summed changes, far less than any setting."""
-
-
-def dominance_holds(
-    model: MotivationModel,
-    state: MotivationState,
-    stimuli: Stimuli,
-    running: str | None,
-    seconds: float,
-) -> bool:
-    """Whether the dominant drive (or the lack of one) surely stays as it is for the
-    next ``seconds`` under these inputs, known from a bound alone: True is certain, and
-    ``simulate`` would find the same dominant at every tick; False only means that a
-    run must tell.
-
-    A drive's rate is ``a + b * cos(...)``, so in ``seconds`` it rises at most
-    ``max(0, a + b) * seconds`` and falls at most ``max(0, b - a) * seconds`` (a wall
-    only holds it back). The dominance holds if no other drive can reach its threshold
-    and the dominant one cannot fall below its satiation level: an idle robot's drives
-    are mostly far from both, and a predictor asks this before simulating (issue 14).
-    """
-    if seconds < 0:
-        raise ValueError(f"seconds must not be negative, got {seconds}")
-    drives = np.maximum(0.0, state.drives - stimuli.instant).tolist()  # as ``simulate``
-    growth = model.net_growth(stimuli, running).tolist()
-    swing = np.abs(model.swing(running)).tolist()
-    table = model.table
-    for i, drive in enumerate(drives):
-        a, b = growth[i], swing[i]
-        if i == state.dominant:
-            fall = max(0.0, b - a) * seconds
-            if drive - fall < float(table.release[i]) + BOUND_MARGIN:
-                return False
-        elif drive + max(0.0, a + b) * seconds > float(table.threshold[i]) - BOUND_MARGIN:
-            return False
-    return True
-
-
 def simulate(
     model: MotivationModel,
     state: MotivationState,
@@ -259,7 +219,6 @@ def simulate(
     follow: bool = False,
     tick_s: float = 0.5,
     every: int = 1,
-    only_dominant: bool = False,
 ) -> Run:
     """Run the model from ``start`` for ``duration`` seconds at ``tick_s`` ticks.
 
@@ -267,10 +226,6 @@ def simulate(
     dominant motivation's behavior at each tick. ``every`` > 0 keeps one sample every
     that many ticks (0 keeps none). A last partial tick, if any, is one ``step``.
     ``start`` may be in any zone; the ticks are counted in elapsed (UTC) time.
-
-    ``only_dominant`` keeps of each sample its time and dominant drive alone (the run's
-    ``drives``, ``motivations`` and ``wellbeing`` have no rows): for a caller that asks
-    only when the dominant drive changes, at half the cost.
     """
     if tick_s <= 0 or duration < 0:
         raise ValueError(
@@ -307,10 +262,7 @@ def simulate(
             changed = np.flatnonzero(names[doms] != current)
             if changed.size:
                 accepted, switched = int(changed[0]) + 1, True
-        if every == 1 and only_dominant:
-            seconds = np.arange(position + 1, position + accepted + 1, dtype=np.float64)
-            sampled.append((seconds * tick_s, block[:0], doms[:accepted]))
-        elif every > 0:
+        if every > 0:
             index = np.arange(position, position + accepted)
             keep = (index + 1) % every == 0
             sampled.append(
@@ -336,7 +288,7 @@ def simulate(
             final, rest, stimuli.without_instant(), current, start + timedelta(seconds=duration)
         )
         end = start + timedelta(seconds=duration)
-    return _run(model, final, end, sampled, ticks, switches, only_dominant)
+    return _run(model, final, end, sampled, ticks, switches)
 
 
 def _run(
@@ -346,7 +298,6 @@ def _run(
     sampled: list[tuple[FloatArray, FloatArray, IntArray]],
     ticks: int,
     switches: int,
-    only_dominant: bool = False,
 ) -> Run:
     width = len(model.names)
     seconds = np.concatenate([s for s, _, _ in sampled]) if sampled else np.zeros(0)
@@ -354,14 +305,6 @@ def _run(
     dominant = (
         np.concatenate([m for _, _, m in sampled]) if sampled else np.zeros(0, dtype=np.int64)
     )
-    if only_dominant:
-        nothing = np.zeros((0, width))
-        return Run(final, end, seconds, nothing, nothing, dominant, np.zeros(0), ticks, switches)
-    omega = model.table.omega
-    total = float(omega.sum())
-    if total:
-        wellbeing = np.clip(100.0 - (drives @ omega) / total, 0.0, 100.0)
-    else:
-        wellbeing = np.full(len(drives), 100.0)
     motivations = motivations_of(model, drives, final.levels, dominant)
+    wellbeing = model.wellbeings(drives)
     return Run(final, end, seconds, drives, motivations, dominant, wellbeing, ticks, switches)

@@ -143,7 +143,7 @@ def plot_table4(path: Path, sessions: Sequence[SessionMetrics]) -> None:
         )
         ax.set_title(LABELS[key], fontsize=9)
         ax.tick_params(labelsize=8)
-    fig.suptitle(f"Table 4: the seed's figures and the simulation's ({len(sessions)} sessions)")
+    fig.suptitle(f"Table 4: the paper's figures and the simulation's ({len(sessions)} sessions)")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)

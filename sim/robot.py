@@ -14,7 +14,7 @@ An interrupted motion leaves the joints where they are.
 acknowledge), to test that the expression arbiter times them out.
 
 **Launching an activity.** On the Mini, starting an activity launches its own process,
-which loads its content before its first command plays; the seed's 3.78 s loading time
+which loads its content before its first command plays; the paper's 3.78 s loading time
 includes it. :attr:`SimRobot.launch_delay_s` models that robot-side cost: when
 :attr:`SimRobot.process_of` (set by the simulation, which knows each command's source)
 names a process the robot has not launched yet, that command and every other command
@@ -64,12 +64,6 @@ LAUNCHED_KEPT = 16
 """Launched processes remembered (an activity paused and resumed is not launched again)."""
 
 
-def speech_seconds(text: str, wpm: float = DEFAULT_WPM) -> float:
-    """How long saying ``text`` takes at ``wpm`` words a minute (also what a simulated
-    user expects, to answer when the robot has finished speaking)."""
-    return 0.3 + 60.0 * len(text.split()) / wpm
-
-
 @dataclass
 class _Running:
     command: RobotCommand
@@ -99,9 +93,6 @@ class SimRobot:
         self._ready_at: dict[Hashable, datetime] = {}
         self.launches = 0
         self._running: dict[str, _Running] = {}
-        self._first_end: datetime | None = None
-        """The earliest end of the running commands (None: none runs): ``poll`` looks
-        through them only from then on."""
         self._out: list[tuple[datetime, int, RobotFeedback]] = []
         self._seq = 0
         self._faults: dict[str, Fault] = {}
@@ -113,6 +104,9 @@ class SimRobot:
         self.leds: dict[str, object] = {}
         self.body: SimBody | None = None
         """The joints, made on the first motion or :meth:`joints` (it needs a clock)."""
+        self.media_s: float | None = None
+        """Seconds every media item plays, whatever its ``duration_s`` (None: its own):
+        a study's media length is its input, not the shipped content's."""
 
     # ------------------------------------------------------------ faults
 
@@ -139,6 +133,8 @@ class SimRobot:
             wpm = float(rate) if isinstance(rate, int | float) and 40 <= rate <= 400 else None
             return 0.3 + 60.0 * words / (wpm or self.speaking_rate_wpm)
         if command.channel == "media":
+            if self.media_s is not None:
+                return self.media_s
             return _seconds(args.get("duration_s"), DEFAULT_MEDIA_S)
         if command.channel == "aim":
             return SETTLE_S
@@ -187,8 +183,6 @@ class SimRobot:
             seconds = max(seconds, self._aim(command, begins))
         ends = begins + timedelta(seconds=seconds)
         self._running[command.id] = _Running(command, ends)
-        if self._first_end is None or ends < self._first_end:
-            self._first_end = ends
 
     def joints(self, now: datetime) -> dict[str, float]:
         """The joint positions at ``now`` (what ``robot/joints`` reports)."""
@@ -229,15 +223,10 @@ class SimRobot:
             self._emit(now, command_id, "interrupted")
 
     def poll(self, now: datetime) -> list[RobotFeedback]:
-        first = self._first_end
-        if first is not None and first <= now:
-            ended = [key for key, running in self._running.items() if running.ends <= now]
-            for command_id in ended:
-                running = self._running.pop(command_id)
-                self._emit(running.ends, command_id, "done")
-            self._first_end = min((r.ends for r in self._running.values()), default=None)
-        if not self._out:
-            return []  # most ticks: nothing to say (no sorting, no new lists)
+        ended = [key for key, running in self._running.items() if running.ends <= now]
+        for command_id in ended:
+            running = self._running.pop(command_id)
+            self._emit(running.ends, command_id, "done")
         due = sorted(item for item in self._out if item[0] <= now)
         self._out = [item for item in self._out if item[0] > now]
         return [feedback for _, _, feedback in due]
@@ -251,9 +240,7 @@ class SimRobot:
         self, when: datetime, command_id: str, status: FeedbackStatus, detail: str | None = None
     ) -> None:
         self._seq += 1
-        # made, not validated: the simulator's own statuses (a validation per command
-        # start and end was a hundredth of a long run)
-        feedback = RobotFeedback.model_construct(id=command_id, status=status, detail=detail)
+        feedback = RobotFeedback(id=command_id, status=status, detail=detail)
         self._out.append((when, self._seq, feedback))
 
 

@@ -1,6 +1,6 @@
 """Where a simulated user's face is: seated in front of the Mini, leaning and shifting.
 
-Seed 001's users sit at a table in front of the robot. A person does not stay still
+The paper's users sit at a table in front of the robot. A person does not stay still
 for half an hour: every so often they lean, sit back or move their chair. :class:`Seat`
 gives the face's position in the robot's base frame at any ``now``: it stays put, then
 moves over a second or two to a new place within reach of the robot's camera. Its
@@ -49,7 +49,6 @@ class Seat:
         self._rng = random.Random(seed)
         self._from: Position = home
         self._to: Position = home
-        self._at_rest = _rounded(home)
         self.sit(now)
 
     def sit(self, now: datetime) -> None:
@@ -61,12 +60,10 @@ class Seat:
 
     def face(self, now: datetime) -> Position:
         """The face's position at ``now`` (metres, base frame, rounded to 1 cm)."""
-        if self._end <= now < self._next:
-            return self._at_rest  # most calls: sitting still (no rounding, no tuple)
         while now >= self._next:
             self._move(self._next)
         if now >= self._end:
-            return self._at_rest
+            return _rounded(self._to)
         span = (self._end - self._start).total_seconds()
         done = (now - self._start).total_seconds() / span if span > 0 else 1.0
         (x0, y0, z0), (x1, y1, z1) = self._from, self._to
@@ -76,7 +73,6 @@ class Seat:
         """Move the face to ``where`` over ``seconds`` from ``now`` (a scripted move)."""
         self._from = self.face(now)
         self._to = where
-        self._at_rest = _rounded(where)
         self._start = now
         self._end = now + timedelta(seconds=seconds)
 
@@ -84,7 +80,6 @@ class Seat:
         s = self.settings
         self._from = self._to
         self._to = (self._rng.uniform(*s.x), self._rng.uniform(*s.y), self._rng.uniform(*s.z))
-        self._at_rest = _rounded(self._to)
         self._start = when
         self._end = when + timedelta(seconds=self._rng.uniform(*s.move_s))
         self._next = self._end + timedelta(seconds=self._rng.uniform(*s.still_s))

@@ -1,18 +1,25 @@
-"""The floors of docs/architecture.md hold: import-linter's contract, and no import cycles.
+"""The rules of docs/architecture.md hold: the floors, file sizes and wording.
 
 The contract (``[tool.importlinter]`` in pyproject.toml) says which package may import
 which; these tests fail when an import breaks it, when a module of ``dms/`` is on no
-floor (it would escape the contract), or when two files import each other.
+floor (it would escape the contract), or when two files import each other. They also
+fail on a file of the product over 600 lines that does not say why at its top, and on
+words that belong to the project's history rather than to its code (work item numbers,
+helper names, a diary, files outside the repository) in code, docs and ``--help``.
 """
 
 from __future__ import annotations
 
 import ast
+import re
 import shutil
 import subprocess
 import sys
 import tomllib
 from pathlib import Path
+
+import typer
+from typer.testing import CliRunner
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("dms", "managers", "activities", "motivation", "memory", "agenda", "sim")
@@ -101,3 +108,104 @@ def test_the_kernel_imports_only_the_kernel() -> None:
         if not target.startswith("dms.kernel")
     }
     assert outside == set()
+
+
+MAX_LINES = 600
+REASON = "Over 600 lines: "
+REASON_WITHIN = 15  # the reason line sits at the top: a comment or the docstring's start
+
+
+def _reason_given(lines: list[str]) -> bool:
+    return any(line.strip().lstrip("#\"' ").startswith(REASON) for line in lines[:REASON_WITHIN])
+
+
+def test_a_long_file_says_why_at_its_top() -> None:
+    long = []
+    for pkg in PACKAGES:
+        for path in sorted((ROOT / pkg).rglob("*.py")):
+            if "migrations" in path.relative_to(ROOT).parts:
+                continue
+            lines = path.read_text(encoding="utf-8").splitlines()
+            if len(lines) > MAX_LINES and not _reason_given(lines):
+                long.append(f"{path.relative_to(ROOT)}: {len(lines)} lines")
+    assert long == [], f"split these, or say why in a line starting {REASON!r} at the top"
+
+
+# Words that tell the project's history, not what the code does: they belong in git.
+PROCESS_WORDS = re.compile(
+    "|".join(
+        (
+            r"\bissue \d+",
+            r"\bseed 00[0-2]\b",
+            r"\b00[0-2]_[0-9a-f]{16}\b",
+            r"\bhelper-\d+",
+            r"\bthe night before\b",
+            r"\bafter midnight\b",
+            r"(?-i:\b(?:DESIGN|CONTRACT|STYLE)\.md\b)",  # docs/contract.md is ours
+        )
+    ),
+    re.IGNORECASE,
+)
+THIS_FILE = Path(__file__).resolve()
+
+
+def _worded_files() -> list[Path]:
+    """The code (product, tests, benchmarks), docs, README and deployment files."""
+    files = [path for pkg in (*PACKAGES, "tests", "bench") for path in (ROOT / pkg).rglob("*.py")]
+    files += sorted((ROOT / "docs").glob("*.md"))
+    files.append(ROOT / "README.md")
+    files += [path for path in (ROOT / "deploy").rglob("*") if path.is_file()]
+    return [path for path in files if path.resolve() != THIS_FILE]
+
+
+def _process_words(text: str) -> list[str]:
+    return sorted({found.group(0) for found in PROCESS_WORDS.finditer(text)})
+
+
+def test_process_words_patterns_catch_what_they_mean() -> None:
+    said = "as issue 14 asks, " + "seed " + "001 " + "says; see DESIGN" + ".md, helper-3"
+    assert len(_process_words(said)) == 4
+    ours = "the paper's Table 4, seed 0 and --seed 7; one issue at a time; docs/contract.md"
+    assert _process_words(ours) == []
+
+
+def test_code_and_docs_name_no_work_items_helpers_or_outside_files() -> None:
+    found = {}
+    for path in _worded_files():
+        try:
+            text = path.read_text(encoding="utf-8")
+        except UnicodeDecodeError:
+            continue
+        words = _process_words(text)
+        if words:
+            found[str(path.relative_to(ROOT))] = words
+    assert found == {}, "history belongs in git: name the concept or the paper instead"
+
+
+def _command_paths(command: object, path: tuple[str, ...] = ()) -> list[tuple[str, ...]]:
+    """``path`` and the paths of every sub-command under it (a group has ``commands``; a
+    sub-app imported only when it runs has ``load``)."""
+    load = getattr(command, "load", None)
+    if callable(load):
+        command = load()
+    paths = [path]
+    commands: dict[str, object] = getattr(command, "commands", {})
+    for name, sub in sorted(commands.items()):
+        paths += _command_paths(sub, (*path, name))
+    return paths
+
+
+def test_the_command_lines_help_names_no_work_items() -> None:
+    from dms.cli import app
+
+    runner = CliRunner()
+    paths = _command_paths(typer.main.get_command(app))
+    assert len(paths) > 20  # every sub-command, not just the top
+    found = {}
+    for path in paths:
+        result = runner.invoke(app, [*path, "--help"], env={"COLUMNS": "200"})
+        assert result.exit_code == 0, (path, result.output)
+        words = _process_words(result.output)
+        if words:
+            found[" ".join(("dms", *path))] = words
+    assert found == {}

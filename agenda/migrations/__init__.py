@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from agenda.models import Base
 from memory.db import make_engine
 from memory.schema_history import SchemaHistory
 
@@ -17,7 +18,7 @@ VERSION_TABLE = "alembic_version_agenda"
 HERE = Path(__file__).resolve().parent
 
 HISTORY = SchemaHistory(
-    HERE, VERSION_TABLE, ("agenda_items", "agenda_occurrences", "agenda_claims")
+    HERE, VERSION_TABLE, ("agenda_items", "agenda_occurrences", "agenda_claims"), Base.metadata
 )
 head = HISTORY.head
 current = HISTORY.current
@@ -30,8 +31,6 @@ def upgrade(url: str) -> None:
     engine = make_engine(url)
     try:
         upgrade_engine(engine)
-        from agenda.models import Base
-
         HISTORY.recreate_missing(engine, Base.metadata)
     finally:
         engine.dispose()

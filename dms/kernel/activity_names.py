@@ -1,4 +1,4 @@
-"""The fixed activity names of CONTRACT.md and the manager each belongs to."""
+"""The fixed activity names of docs/contract.md and the manager each belongs to."""
 
 from __future__ import annotations
 
@@ -33,7 +33,7 @@ ACTIVITIES: dict[str, ManagerName] = {
     "instructions": ManagerName.GENERAL,
     "menu": ManagerName.GENERAL,
 }
-"""Every activity name, in CONTRACT.md's order, with its manager."""
+"""Every activity name, in docs/contract.md's order, with its manager."""
 
 ENTERTAINMENT_ACTIVITIES: tuple[str, ...] = tuple(
     name for name, manager in ACTIVITIES.items() if manager is ManagerName.ENTERTAINMENT

@@ -1,6 +1,6 @@
 """The Mini's body: its five motors' limits and speeds, and the frames they move.
 
-Seed 001's Mini has a hip (turns the upper body), two arms, a neck (pans the head) and
+The paper's Mini has a hip (turns the upper body), two arms, a neck (pans the head) and
 a head (tilts it), and a 3D camera in the head that perceives the user. The frames
 here are what :class:`dms.kernel.frames.FrameStore` needs to turn "the face is there,
 in the base frame" into joint angles, and back: ``torso`` (after the hip), ``neck``

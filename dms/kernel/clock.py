@@ -86,10 +86,6 @@ class TickTiming:
     due: float
     started: float
 
-    @property
-    def lateness(self) -> float:
-        return self.started - self.due
-
 
 class Ticker:
     """Yields ticks at a fixed period against monotonic deadlines, so it never drifts.
@@ -146,6 +142,6 @@ class Ticker:
 
 
 def iso(t: datetime) -> str:
-    """ISO-8601 UTC with milliseconds and a trailing Z, as CONTRACT.md asks."""
+    """ISO-8601 UTC with milliseconds and a trailing Z, as docs/contract.md asks."""
     t = t.astimezone(UTC)
     return t.strftime("%Y-%m-%dT%H:%M:%S.") + f"{t.microsecond // 1000:03d}Z"

@@ -1,6 +1,6 @@
 """Frames: where things are, relative to the robot, and how fresh that knowledge is.
 
-Seed 002 makes behaviors general by expressing motions relative to frames that
+The ROS Commander paper makes behaviors general by expressing motions relative to frames that
 perception produces (a face, a tag), and by keeping a task frame's last known pose
 when there is no live estimate. A :class:`FrameStore` keeps a small tree of frames:
 ``base`` (the robot's base, x forward, y left, z up) at the root, the body's frames
@@ -9,9 +9,10 @@ perception (``face:<user>``, ``object:<name>``). Each perceived frame carries it
 a lookup says whether the answer is live or last-known, and its age.
 
 Poses are 4x4 homogeneous matrices (numpy): composing and inverting them is a few
-microseconds, which keeps a lookup in a 50-frame tree under 10 µs. Rotations are made
-by ``scipy.spatial.transform.Rotation`` (quaternions, Euler angles), never by hand,
-imported when the first one is made.
+microseconds, which keeps a lookup in a 50-frame tree under 10 µs. Rotations come from
+a unit quaternion or from roll, pitch and yaw about the fixed axes (scipy's
+``Rotation.from_quat`` and ``from_euler("xyz", ...)``, which a test checks them
+against): the textbook formulas in numpy, so that the daemon does not need scipy.
 Everything is pure and takes ``now``, like the motivation model.
 """
 
@@ -43,20 +44,43 @@ def pose(
     """A transform from a translation and a rotation (quaternion x, y, z, w, or roll,
     pitch, yaw in radians); none given: no rotation."""
     matrix = np.eye(4)
-    if rpy is not None and not any(rpy):
-        rpy = None  # no turn (a body at rest): nothing to ask scipy
-    if quaternion is not None or rpy is not None:
-        # scipy's import takes a quarter of a second: paid on the first rotation made
-        # (the first face seen), not on the daemon's start path (issue 14).
-        from scipy.spatial.transform import Rotation
-
-        if quaternion is not None:
-            rotation = Rotation.from_quat(list(quaternion))
-        else:
-            rotation = Rotation.from_euler("xyz", list(rpy or (0.0, 0.0, 0.0)))
-        matrix[:3, :3] = rotation.as_matrix()
+    if quaternion is not None:
+        matrix[:3, :3] = _from_quaternion(quaternion)
+    elif rpy is not None and any(rpy):
+        matrix[:3, :3] = _from_rpy(rpy)
     matrix[:3, 3] = xyz
     return matrix
+
+
+def _from_quaternion(quaternion: Sequence[float]) -> Matrix:
+    """The rotation matrix of quaternion (x, y, z, w), normalized first (as scipy does)."""
+    x, y, z, w = (float(v) for v in quaternion)
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
+    if not norm > 0.0 or not math.isfinite(norm):
+        raise ValueError(f"not a rotation: quaternion {list(quaternion)} has no direction")
+    x, y, z, w = x / norm, y / norm, z / norm, w / norm
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def _from_rpy(rpy: Sequence[float]) -> Matrix:
+    """Roll about x, then pitch about y, then yaw about z, all fixed axes: Rz Ry Rx."""
+    roll, pitch, yaw = (float(v) for v in rpy)
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
 
 
 def invert(matrix: Matrix) -> Matrix:

@@ -1,4 +1,4 @@
-"""Key expressions of the public Zenoh key space (CONTRACT.md), as named constants.
+"""Key expressions of the public Zenoh key space (docs/contract.md), as named constants.
 
 Keys are relative to ``robots/<robot_id>/``; :func:`absolute` makes them whole.
 """

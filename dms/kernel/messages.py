@@ -1,4 +1,4 @@
-"""The public messages of CONTRACT.md as pydantic v2 models.
+"""The public messages of docs/contract.md as pydantic v2 models.
 
 Inbound models validate what other processes publish: unknown fields are ignored,
 wrong types, out-of-range values and missing required fields raise
@@ -108,7 +108,7 @@ class UserPerception(Inbound):
     ready: bool = False
     engagement: Unit | None = None
     face: Pose | None = None
-    """Optional (issue 16): the user's face in the robot's base frame."""
+    """Optional: the user's face in the robot's base frame."""
 
 
 ObjectName = Annotated[str, StringConstraints(pattern=r"^[A-Za-z0-9_.-]{1,64}$")]
@@ -228,7 +228,7 @@ class RobotFeedback(Inbound):
 # ---------------------------------------------------------------- outbound
 
 Channel = Literal["speech", "screen", "led", "motion", "media", "aim"]
-"""``aim`` (issue 16): turning joints toward a frame (``look_at``, ``point_at``,
+"""``aim``: turning joints toward a frame (``look_at``, ``point_at``,
 ``turn_to``); best effort, so a robot that ignores it loses nothing (see the arbiter)."""
 
 
@@ -284,8 +284,10 @@ InputStatus = Literal["ok", "stale", "missing"]
 Mode = Literal["motivation", "autonomous", "user_choice", "hybrid"]
 
 
-class DmsState(Outbound):
+class DmsState(_OmitsUnset):
     """``dms/state``: the daemon's state, every tick and after every decision."""
+
+    _OPTIONAL = ("started",)
 
     robot: str
     tick: int
@@ -307,6 +309,12 @@ class DmsState(Outbound):
     being written, or spooled during an outage): 0 once a state published after an
     action shows it, what the action wrote is stored (another robot of the fleet reads
     it); a number that stays up says the database is away."""
+    storage: Literal["ok", "degraded"] = "ok"
+    """``degraded``: acknowledged writes wait for the database (it is away, its disk is
+    full, its file was deleted); they are spooled and written once it takes them again."""
+    started: str | None = None
+    """Optional: when the daemon started (ISO-8601), for a viewer opened later; left out
+    by a state not published by a daemon (a simulation)."""
 
 
 DecisionAction = Literal["start", "pause", "resume", "cancel", "complete", "fail", "ask"]
@@ -333,12 +341,19 @@ Reason = Literal[
 ChosenBy = Literal["robot", "user", "agenda", "motivation"]
 
 
-class ModeWhy(Outbound):
-    """How the mode of a choice was drawn: the user's initiative if ``draw < p_user``."""
+class ModeWhy(_OmitsUnset):
+    """The mode coin: the user takes the initiative (a menu) if ``draw < p_user``."""
+
+    _OPTIONAL = ("left_to_robot",)
 
     p_user: float | None = None
+    """The probability that the user takes the initiative (the coin's threshold)."""
     draw: float | None = None
+    """The coin (uniform in 0..1); None when none was tossed (see ``left_to_robot``)."""
     mode: str | None = None
+    left_to_robot: bool | None = None
+    """Optional: True when no coin was tossed because the user had just left the choice to
+    the robot (declined the menu, or let it go unanswered)."""
 
 
 class PreferenceWhy(Outbound):
@@ -362,8 +377,39 @@ class RuleWhy(Outbound):
     activate: list[str] = Field(default_factory=list)
 
 
-class Why(Outbound):
-    """What decided (CONTRACT.md ``why``); every field optional."""
+DrawKind = Literal["novelty", "sampling", "random", "chooser"]
+"""What picked the robot's activity among its candidates (docs/contract.md ``why``)."""
+
+
+class NoveltyWhy(Outbound):
+    """The novelty coin: an activity the user never did is picked if ``draw < probability``."""
+
+    draw: float
+    probability: float
+    untried: list[str]
+    """The candidates the user never did, among which a novelty pick is drawn."""
+
+
+class ChoiceWhy(_OmitsUnset):
+    """Which random draw picked the robot's activity, and among what."""
+
+    _OPTIONAL = ("novelty", "samples", "excluded")
+
+    by: DrawKind
+    candidates: list[str]
+    """What the pick was among."""
+    excluded: list[str] | None = None
+    """Left out of the candidates: the last activity (never twice in a row)."""
+    novelty: NoveltyWhy | None = None
+    """The novelty coin, when one was tossed (some candidate never done)."""
+    samples: dict[str, float] | None = None
+    """Thompson sampling: one liking drawn from each candidate's belief; the highest won."""
+
+
+class Why(_OmitsUnset):
+    """What decided (docs/contract.md ``why``); every field optional."""
+
+    _OPTIONAL = ("choice",)
 
     mode: ModeWhy | None = None
     preferences: list[PreferenceWhy] | None = None
@@ -372,6 +418,8 @@ class Why(Outbound):
     rule: RuleWhy | None = None
     evidence: str | None = None
     """For cancels and failures: what was seen."""
+    choice: ChoiceWhy | None = None
+    """Optional: for the robot's own choice of an activity, the draw that picked it."""
 
 
 class Decision(Outbound):

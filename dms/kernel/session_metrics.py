@@ -1,4 +1,4 @@
-"""Table 4 of seed 001, measured by the daemon on each real session.
+"""Table 4 of the paper, measured by the daemon on each real session.
 
 The paper's robot logged, per session, how long activities took to load and to run,
 the time between them, who chose them, the cancels, the questions and the failures

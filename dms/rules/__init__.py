@@ -1,4 +1,5 @@
-"""DMSL, the decision rule language of the seed paper (DESIGN.md, "DMSL, the rule language").
+"""DMSL, the decision rule language ("Combining Finite State Machine and Decision-Making Tools
+for Adaptable Robot Behavior"; docs/dmsl.md).
 
 Designers write ``.dmsl`` files of ``def``s and ``component`` blocks; the daemon asks a
 component for a decision with ``params.user``, ``params.robot`` and ``params.env``::

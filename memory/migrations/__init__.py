@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from memory.models import Base
 from memory.schema_history import SchemaHistory
 
 VERSION_TABLE = "alembic_version_memory"
@@ -24,7 +25,7 @@ TABLES = (
     "applied_writes",
 )
 
-HISTORY = SchemaHistory(HERE, VERSION_TABLE, TABLES)
+HISTORY = SchemaHistory(HERE, VERSION_TABLE, TABLES, Base.metadata)
 head = HISTORY.head
 current = HISTORY.current
 installed = HISTORY.installed

@@ -9,13 +9,14 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-import dms.cli  # noqa: F401  (the composition root wires the simulated robot into `behavior`)
 from activities import BehaviorError
 from activities.cli import app
 from activities.library import BEHAVIORS_DIR
-from activities.spec import SCHEMA_PATH
+from activities.schema import SCHEMA_PATH
+from dms.cli import wire_simulated_robot
 
 runner = CliRunner()
+wire_simulated_robot()  # the composition root lets `behavior step|run` drive the simulated Mini
 QUIZ = str(BEHAVIORS_DIR / "quiz.yaml")
 
 
@@ -78,7 +79,7 @@ def test_step_goes_one_state_per_enter_and_takes_answers(tmp_path: Path) -> None
 
 
 def test_step_waits_at_a_question_and_prints_only_what_changed() -> None:
-    """Issue 13: a second Enter no longer runs through the question's timeout, and a
+    """A second Enter does not run through the question's timeout, and a
     step prints the userdata keys that changed (a long value cut), not all of it."""
     result = runner.invoke(app, ["step", QUIZ, "--user", "ana"], input="\n\n\nParis\n6\nq\n")
     assert result.exit_code == 0, result.output

@@ -1,7 +1,7 @@
 """Decide states against the rules: the outcome check, the ``[behaviors]`` folder, reloads.
 
-A decide state's DMSL component may only activate outcomes the state declares (DESIGN.md,
-the verifier). ``dms behavior check --rules`` refuses a mismatch; the daemon warns on
+A decide state's DMSL component may only activate outcomes the state declares (the
+rules' verifier checks it). ``dms behavior check --rules`` refuses a mismatch; the daemon warns on
 ``dms/errors`` at load and on reload. Reloads keep the previous behaviors when a new
 version is refused.
 """
@@ -15,10 +15,10 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-import dms.cli  # noqa: F401  (the composition root wires the simulated robot into `behavior`)
 from activities import BehaviorLibrary, decision_problems, reload_rules_and_behaviors
 from activities.cli import app
 from activities.library import BEHAVIORS_DIR
+from dms.cli import wire_simulated_robot
 from dms.config import load_config
 from dms.kernel.errors import ConfigError
 from dms.rules import LiveRules, check_outcomes, rules_from_text
@@ -33,6 +33,7 @@ GOOD_TOPICS = 'component TalkTopic [ if params.user.age > 80 then activate "fami
 BAD_TOPICS = 'component TalkTopic [\n    activate "family"\n    activate "weather"\n]\n'
 
 runner = CliRunner()
+wire_simulated_robot()  # the composition root lets `behavior step|run` drive the simulated Mini
 
 
 def test_an_activation_outside_the_outcomes_names_state_and_rule() -> None:

@@ -8,7 +8,8 @@ from typing import Any
 import pytest
 
 from activities import ActivityStatus
-from activities.engine import PREEMPTED, StateMachine, Status
+from activities.containers import StateMachine
+from activities.engine import PREEMPTED, Status
 from dms.kernel.messages import ScreenChoice, Speech, Touch
 from tests.activities.conftest import Bench, FakeRules
 

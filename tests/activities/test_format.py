@@ -13,7 +13,8 @@ import yaml
 from activities import BehaviorError, BehaviorLibrary
 from activities.blocks import BLOCKS
 from activities.library import BEHAVIORS_DIR
-from activities.spec import SCHEMA_PATH, json_schema, parse_file, parse_text
+from activities.schema import SCHEMA_PATH, json_schema
+from activities.spec import parse_file, parse_text
 from activities.synonyms import match_activity
 from dms.kernel.activity_names import ACTIVITIES
 

@@ -1,4 +1,4 @@
-"""Issue 16, items 2 and 4: blocks that take frames as targets, on the simulated Mini.
+"""Blocks that take frames as targets, on the simulated Mini.
 
 The frames are a real :class:`FrameStore` kept as the daemon's scene keeps it (faces and
 objects with their times, the body from the simulated Mini's joints); the commands go
@@ -86,7 +86,7 @@ def test_look_at_turns_toward_a_frame_within_the_joints_limits(tmp_path: Path) -
 
 
 def test_look_at_uses_the_last_known_pose_or_ends_lost(tmp_path: Path) -> None:
-    """Seed 002's task frames: no live estimate, the last known one, if the behavior says."""
+    """ROS Commander's task frames: no live estimate, the last known one, if the behavior says."""
     for last_known, outcome in (("true", "done"), ("false", "lost")):
         bench = _bench(tmp_path / last_known, {"look": LOOK % last_known})
         bench.frames.set("object:cup", pose((0.5, -0.2, 0.1)), stamp=bench.now, stale_after_s=1.0)

@@ -11,7 +11,8 @@ import pytest
 
 from activities import ActivityStatus, BehaviorError
 from activities.blocks import BLOCKS, Block
-from activities.spec import CONTAINER_PARAMS, json_schema, parse_text
+from activities.schema import json_schema
+from activities.spec import CONTAINER_PARAMS, parse_text
 
 HEAD = "name: x\noutcomes: [done]\nstates:\n  S:\n"
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "behaviors.md"
@@ -89,7 +90,14 @@ def test_a_placeholder_is_accepted_for_a_parameter_of_any_type() -> None:
 
 
 def test_a_required_parameter_written_as_a_placeholder_is_not_missing() -> None:
-    parse_text(HEAD + "    set_param: {name: '{args.name}', value: '{args.value}'}\n", "x.yaml")
+    spec = parse_text(
+        HEAD + "    set_param: {name: '{args.name}', value: '{args.value}'}\n", "x.yaml"
+    )
+    # kept as written, to be bound on entry; without ``name`` the same state is refused
+    assert spec.root.states["S"].params == {"name": "{args.name}", "value": "{args.value}"}
+    assert _problem("    set_param: {value: '{args.value}'}\n") == (
+        "x.yaml:5: state S: set_param: missing parameter 'name'"
+    )
 
 
 def test_the_schema_allows_a_placeholder_wherever_a_string_would_not_do() -> None:

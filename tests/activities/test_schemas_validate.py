@@ -18,7 +18,7 @@ import yaml
 from jsonschema import Draft202012Validator
 
 from activities.library import BEHAVIORS_DIR
-from activities.spec import SCHEMA_PATH
+from activities.schema import SCHEMA_PATH
 from dms.kernel.messages import (
     SCHEMAS,
     ObjectsPerception,

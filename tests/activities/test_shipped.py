@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from activities import Activity, ActivityStatus, BehaviorLibrary
-from activities.engine import Concurrence, StateMachine
+from activities.containers import Concurrence, StateMachine
 from dms.kernel.activity_names import ACTIVITIES, USER_SELECTABLE
 from dms.kernel.messages import RobotCommand, ScreenChoice, Speech, Touch
 from tests.activities.conftest import Bench, FakeRules

@@ -1,4 +1,4 @@
-"""A waiting machine sleeps (issue 14): the ticks it skips change nothing.
+"""A waiting machine sleeps: the ticks it skips change nothing.
 
 After a tick that left it running, the activity asks its active states what they
 wait for (:class:`activities.engine.Wake`) and skips its ticks until that moves or

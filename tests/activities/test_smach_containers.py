@@ -1,13 +1,15 @@
 """SMACH's own container tests (executive_smach ``smach_ros/test/state_machine.py``,
 ``sequence.py``, ``concurrence.py``) restated as behavior files with the same
-expectations, and the two preemption cases of issue 14."""
+expectations, and preemption requests: two in a row running the cleanup states, one during a
+pause, one on a state already stopped or whose parent was preempted."""
 
 from __future__ import annotations
 
 from typing import Any
 
 from activities import ActivityStatus
-from activities.engine import Node, StateMachine, Status
+from activities.containers import StateMachine
+from activities.engine import Node, Status
 from dms.kernel.messages import Touch
 from tests.activities.conftest import Bench
 
@@ -207,7 +209,7 @@ def test_concurrence_does_not_preempt(make: Any) -> None:
     assert activity.result.outcome == "succeeded"
 
 
-# ------------------------------------------------------------ issue 14
+# ------------------------------------------------------------ preemption requests
 
 CLEANUP = """
 name: t

@@ -1,4 +1,4 @@
-"""Issue 14, item 1 at the controller: a cancel preempts the activity the SMACH way.
+"""At the controller, a cancel preempts the activity the SMACH way.
 
 Real controller stack on a virtual clock (real SQLite, the simulated Mini). The cancel
 decision and the next start come in the same tick; the cancelled activity's cleanup

@@ -68,13 +68,13 @@ def _targets(sim: Simulation) -> dict[str, tuple[Any, str]]:
         "motivation": (deps.motivation, "step"),
         "robot": (deps.expression, "update"),
         "memory": (deps.profiles, "retry"),
-        "user": (controller, "_track_user"),
-        "dialog": (controller, "_advance_dialog"),
-        "cleanup": (controller, "_wind_down"),
-        "activity": (controller, "_tick_activities"),
-        "cancel": (controller, "_due_items"),
-        "choose": (controller, "_choose"),
-        "event/request": (controller, "_on_request"),
+        "user": (controller.choice, "follow_user"),
+        "dialog": (controller.dialogs, "advance"),
+        "cleanup": (controller.runner, "wind_down"),
+        "activity": (controller.choice, "follow_activity"),
+        "cancel": (controller.choice, "due_items"),
+        "choose": (controller.choice, "choose"),
+        "event/request": (controller.events, "on_request"),
     }
 
 
@@ -171,7 +171,7 @@ def test_a_failing_activity_step_fails_the_activity_cleanly() -> None:
     with _ready_sim() as sim:
         assert sim.controller.current is not None
         running = sim.controller.current.name
-        with raising(sim.controller, "_check_cancel_reasons"):
+        with raising(sim.controller.choice, "check_cancel_reasons"):
             sim.tick()
         decisions = [d.decision for d in sim.decisions if d.decision.tick == _last(sim).tick]
         assert decisions[0].action == "fail" and decisions[0].activity == running, decisions

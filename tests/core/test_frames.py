@@ -1,4 +1,4 @@
-"""Issue 16, item 1: the frame store, the Mini's body frames, gaze and pointing.
+"""The frame store, the Mini's body frames, gaze and pointing.
 
 Property tests (hypothesis) of composition and inversion, and of staleness; then the
 geometry a person would check by eye: a face on the left makes the robot pan left, a

@@ -1,5 +1,5 @@
-"""Issue 12, items 1 to 3: initiative from the user's own acts, requests served at once,
-and perception that goes quiet is "unknown", not "gone".
+"""Initiative from the user's own acts, requests served at once, and perception that
+goes quiet is "unknown", not "gone".
 
 Real controller stack on a virtual clock (real SQLite, the simulated Mini); the user is
 scripted here, so that each test says exactly what the user does.

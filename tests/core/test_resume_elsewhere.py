@@ -1,4 +1,4 @@
-"""Issue 15, item 4: sessions move with the person; what a session end cut is resumed
+"""Sessions move with the person; what a session end cut is resumed
 at the next robot only when the configuration asks for it.
 
 Two robot stacks (real controllers on virtual clocks, the simulated Mini) share one

@@ -1,4 +1,4 @@
-"""Issue 16, items 1 and 5: frames from perception, through the input board as the daemon
+"""Frames from perception, through the input board as the daemon
 takes them each tick; the optional inputs' messages and the aim channel's best effort."""
 
 from __future__ import annotations

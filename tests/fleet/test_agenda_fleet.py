@@ -16,7 +16,8 @@ from typing import Any
 import pytest
 from sqlalchemy.exc import OperationalError
 
-import agenda.service as service
+import agenda.claims as claims
+import agenda.writer as writer
 from agenda import Agenda, DueItem, ItemSpec, Outcome
 from tests.fleet.conftest import NOW
 
@@ -172,18 +173,18 @@ def test_a_delivery_replaces_another_robots_miss_of_it(fleet_url: str) -> None:
 @contextmanager
 def _database_down_for(agenda: Agenda) -> Iterator[None]:
     """Every write of ``agenda``'s log fails (as a locked or absent database does)."""
-    real = service._write
+    real = writer.write_records
 
     def failing(connection: Any, entries: list[dict[str, Any]]) -> set[int]:
         if connection.engine is agenda._engine:
             raise OperationalError("INSERT", {}, Exception("database is locked"))
         return real(connection, entries)
 
-    service._write = failing  # type: ignore[assignment]
+    writer.write_records = failing  # type: ignore[assignment]
     try:
         yield
     finally:
-        service._write = real  # type: ignore[assignment]
+        writer.write_records = real  # type: ignore[assignment]
 
 
 def test_items_added_elsewhere_reach_a_robot_without_a_restart(fleet_url: str) -> None:
@@ -210,18 +211,18 @@ def test_without_the_database_a_claim_waits_or_the_item_is_delivered_offline(
     delivered anyway."""
     with robots(fleet_url, count=1, offline_delivery=offline) as (a,):
         item = a.add(reminder(1), NOW)
-        real = service._claim
+        real = claims.claim_occurrence
 
         def unreachable(*_: Any) -> str:
             raise OperationalError("INSERT", {}, Exception("connection refused"))
 
-        service._claim = unreachable  # type: ignore[assignment]
+        claims.claim_occurrence = unreachable  # type: ignore[assignment]
         try:
             got = a.due(NOW + MIN, "ann")
             assert [due.item_id for due in got] == ([item.item_id] if offline else [])
-            retry = NOW + MIN + timedelta(seconds=service.CLAIM_RETRY_S)
+            retry = NOW + MIN + timedelta(seconds=claims.CLAIM_RETRY_S)
         finally:
-            service._claim = real  # type: ignore[assignment]
+            claims.claim_occurrence = real  # type: ignore[assignment]
         if not offline:
             assert a.due(NOW + MIN + timedelta(seconds=1), "ann") == []  # no retry yet
             (due,) = a.due(retry, "ann")  # the database is back

@@ -1,6 +1,6 @@
 """Robots sharing one profile store: concurrent writes of one person, replays of a spool.
 
-The issue's failure: two daemons serving the same person wrote 20 runs and 18 were
+The failure these tests guard against: two daemons serving the same person wrote 20 runs and 18 were
 stored (``record_activity refused: duplicate key value violates unique constraint
 "activity_scores_pkey"``: both created the score row).
 """
@@ -14,7 +14,7 @@ from pathlib import Path
 from dms.profiles import ProfileService
 from dms.storage import Waiter, Write
 from memory import ProfileStore
-from memory.spool import Spool
+from memory.spool import write_spool
 from tests.fleet.conftest import NOW
 
 RUNS = 20
@@ -151,9 +151,7 @@ def test_a_spool_replayed_after_a_crash_applies_each_write_once(
     applied = store.export("ann")
     assert all("write_id" in w.kwargs or "key" in w.kwargs for w in sent[1:])
     # kill -9 before the spool said done: the next start finds every write in it.
-    spool = Spool(spool_path)
-    spool.append([write.to_json() for write in sent])
-    spool.close()
+    write_spool(spool_path, [write.to_json() for write in sent], {})
     again = ProfileService(
         store, lambda *_: None, threaded=False, spool_path=spool_path, quarantine_path=quarantine
     )

@@ -88,8 +88,7 @@ class Collector:
 READY_TIMEOUT_S = 60.0
 """How long :func:`wait_token` waits by default (for ``alive/dms`` above all). A readiness
 wait returns as soon as the token comes (about 0.6 s on a quiet 2-core machine); the
-margin is for a loaded CI machine, where a 20 s wait once failed a start that took 19.9 s
-(issue 14)."""
+margin is for a loaded CI machine, where a 20 s wait once failed a start that took 19.9 s."""
 
 
 def wait_token(
@@ -123,11 +122,14 @@ class DaemonProcess:
         robot_id: str = "mini",
         db: str | None = None,
         session_questions: int = 0,
+        new_user_after_s: float = 0.0,
     ) -> None:
         """``extra_config`` is appended inside the ``[controller]`` table (or opens its own
         tables); ``extra_args`` go after ``dms run``'s flags (``--robot zenoh``,
         ``--connect`` to a router). ``db``: a shared database (a fleet's PostgreSQL);
-        ``session_questions``: the opening questions (none by default)."""
+        ``session_questions``: the opening questions (none by default);
+        ``new_user_after_s``: how long a new user waits to be stored (at once by default:
+        the tests of what is stored show a user for a moment)."""
         self.port = port or free_port()
         self.extra_args = extra_args
         self.robot_id = robot_id
@@ -136,7 +138,7 @@ class DaemonProcess:
         self.config.write_text(
             'seed = 3\n[inputs]\nstale_after_s = { "perception/user" = 30.0 }\n'
             f"[controller]\nsession_questions = {session_questions}\nquestion_every = 0\n"
-            "feedback_probability = 0.0\n" + extra_config
+            f"feedback_probability = 0.0\nnew_user_after_s = {new_user_after_s}\n" + extra_config
         )
         self.proc: subprocess.Popen[str] | None = None
         self.log = tmp / "daemon.log"

@@ -1,4 +1,4 @@
-"""Issue 14, item 1 from outside: a real ``dms run`` and a real Zenoh session on 127.0.0.1.
+"""A cancelled activity's cleanup from outside: a real ``dms run`` and a real Zenoh session.
 
 A caregiver's app stops a quiz mid-question by asking for bingo: the daemon decides
 cancel and start in one tick, and the robot is told to say that the quiz stops, with

@@ -1,4 +1,4 @@
-"""Issue 15 from outside: a care home's fleet, every part real.
+"""From outside: a care home's fleet, every part real.
 
 A Zenoh router (``dms router``, a process), three daemons (``dms run``, each a process
 with its own robot id, connected to the router) and one PostgreSQL database (the

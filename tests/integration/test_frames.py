@@ -1,4 +1,4 @@
-"""Issue 16 from outside: a real daemon over real Zenoh turns toward the person it plays with.
+"""From outside: a real daemon over real Zenoh turns toward the person it plays with.
 
 A perception process (this test) publishes ``perception/user`` with the face's position
 five times a second; the daemon runs the quiz, whose behavior attends to the user, and

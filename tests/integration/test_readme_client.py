@@ -10,7 +10,11 @@ import threading
 from pathlib import Path
 from typing import Any
 
+import pytest
+
 from tests.integration.harness import running_daemon
+
+pytestmark = pytest.mark.integration
 
 README = Path(__file__).resolve().parents[2] / "README.md"
 

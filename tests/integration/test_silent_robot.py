@@ -13,10 +13,14 @@ import threading
 from datetime import datetime
 from pathlib import Path
 
+import pytest
+
 from dms.bus import ZenohClient, make_config
 from dms.kernel.clock import RealClock
 from sim.robot_node import RobotNode
 from tests.integration.harness import Collector, DaemonProcess, client_session, put, wait_token
+
+pytestmark = pytest.mark.integration
 
 SILENT = "ack_timeout_s = 1.0\noffline_after_unacked = 2\noffline_retry_max_s = 30.0\n"
 

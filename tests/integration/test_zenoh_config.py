@@ -8,7 +8,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from tests.integration.harness import client_session, free_port, wait_token
+
+pytestmark = pytest.mark.integration
 
 
 def _dms(*args: str, **kwargs: object) -> subprocess.Popen[str]:

@@ -1,8 +1,9 @@
-"""The preference model's own solver and encoder against scikit-learn's (issue 14, item 2).
+"""The preference model's own solver and encoder against scikit-learn's.
 
-memory/preferences.py no longer imports scikit-learn (0.6 s of the daemon's start and
-100 MB resident); these tests keep it honest: the same columns as ``DictVectorizer``,
-an optimum at least as good as ``LogisticRegression(C=1.0)``'s, the same rankings.
+memory/preferences.py solves the model without scikit-learn (which would cost 0.6 s of
+the daemon's start and 100 MB resident); these tests hold it to scikit-learn's answers:
+the same columns as ``DictVectorizer``, an optimum at least as good as
+``LogisticRegression(C=1.0)``'s, the same rankings.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""What the chooser learns from a user's own evidence (issue 12, item 6).
+"""What the chooser learns from a user's own evidence.
 
 A rating says how much; a completion only that the user did not stop it; a
 cancellation that they probably disliked it. The chooser's belief about each activity

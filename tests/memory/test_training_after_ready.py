@@ -1,7 +1,7 @@
-"""The daemon trains its preference model after it is ready (issue 14, item 2).
+"""The daemon trains its preference model after it is ready.
 
-Until then it decides by the seed model; the simulator still trains before its first
-tick, so that a seeded run never depends on a thread.
+Until then its chooser's beliefs start flat (an untrained model); the simulator still
+trains before its first tick, so that a seeded run never depends on a thread.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ def _store_fans(url: str) -> str:
     return favorite
 
 
-def test_the_daemon_decides_by_the_seed_model_until_ready_then_by_the_trained_one(
+def test_the_daemon_decides_untrained_until_ready_then_by_the_trained_model(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     url = f"sqlite:///{tmp_path / 'dms.db'}"
@@ -56,8 +56,8 @@ def test_the_daemon_decides_by_the_seed_model_until_ready_then_by_the_trained_on
     assert chooser is not None
     try:
         seed = PreferenceModel.from_seed()
-        assert chooser.model is seed  # the fallback: nothing trained on the start path
-        assert chooser.model.predict_ranking(FEATURES, random.Random(0))[0] != favorite
+        assert chooser.model.training_size == 0  # nothing trained on the start path
+        assert chooser.model.win_scores(FEATURES) is None  # flat beliefs meanwhile
         alive_when_training: list[bool] = []
         retrain = chooser.retrain
 

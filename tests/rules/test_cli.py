@@ -1,4 +1,4 @@
-"""`dms rules check|eval|schema` as CONTRACT.md says, driven through the rules typer app."""
+"""`dms rules check|eval|schema` as the contract says, driven through the rules typer app."""
 
 from __future__ import annotations
 

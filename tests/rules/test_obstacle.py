@@ -1,4 +1,4 @@
-"""The seed paper's ObstacleDetected rule (section 4) behaves as the paper says."""
+"""The DMSL paper's ObstacleDetected rule (section 4) behaves as the paper says."""
 
 from __future__ import annotations
 

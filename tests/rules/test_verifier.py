@@ -1,4 +1,4 @@
-"""Every check of DESIGN.md's verifier, each with its FILE:LINE:COL: message."""
+"""Every check of the DMSL verifier, each with its FILE:LINE:COL: message."""
 
 from __future__ import annotations
 

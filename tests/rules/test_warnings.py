@@ -1,6 +1,6 @@
 """Warnings of the verifier: components that may activate nothing on some path.
 
-DESIGN.md asks the verifier for "components that may activate nothing"; the seed's
+The verifier reports "components that may activate nothing"; the DMSL paper's
 ``ObstacleDetected`` does so on purpose, so it is a warning (stderr, exit 0), not an error.
 """
 

@@ -1,4 +1,4 @@
-"""The simulated Mini's body (issue 16, item 3): joints move at their speed, within
+"""The simulated Mini's body: joints move at their speed, within
 their limits, toward the targets a gaze sets; the head follows a face that moves."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""Issue 16, item 3: simulated users move in their seat, and the simulated Mini turns its
-joints toward what an aim command names, at their speeds, reporting where they are."""
+"""Simulated users move in their seat, and the simulated Mini turns its joints toward
+what an aim command names, at their speeds, reporting where they are."""
 
 from __future__ import annotations
 

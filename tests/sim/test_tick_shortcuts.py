@@ -1,10 +1,10 @@
-"""The shortcuts of issue 14's tick give what the long way gives.
+"""The shortcuts a long simulation takes give what the long way gives.
 
-A long run reads the motivation model's own state each tick instead of DmsState's
-snapshot, a manager answers with its last reply while nothing in it changed, and the
-prediction of the next motivated change keeps only the dominant drives. Each test runs
-the long way beside the short one, on a simulated morning with a visitor, and compares
-them exactly (fixed seeds: the numbers must be the same floats, not close ones).
+The long-term tracker reads the motivation model's own state each tick instead of
+DmsState's snapshot, and a manager answers with its last reply while nothing in it
+changed. Each test runs the long way beside the short one, on a simulated morning with
+a visitor, and compares them exactly (fixed seeds: the numbers must be the same
+floats, not close ones).
 """
 
 from __future__ import annotations
@@ -14,12 +14,10 @@ import random
 from datetime import UTC, datetime
 from typing import Any
 
-import numpy as np
 import pytest
 
 from dms.controller import TickRecord
 from managers import ManagerReply, ManagerStatus
-from motivation import MotivationModel, Percepts, simulate
 from sim.harness import Simulation
 from sim.longterm import _Tracker
 from sim.persona import load_persona
@@ -102,24 +100,6 @@ def test_a_manager_answers_again_only_with_what_still_holds() -> None:
             manager.tick = checking  # type: ignore[method-assign]
         _morning(sim)
     assert checked > 2000
-
-
-def test_the_prediction_keeps_the_dominant_drives_of_a_whole_run() -> None:
-    model = MotivationModel()
-    state = model.initial_state(START)
-    for running, percepts in [
-        ("sleep", Percepts(False)),
-        (None, Percepts(True, 0.9)),
-        ("dance", Percepts(None, None, {"light_lux": 10.0})),
-    ]:
-        stimuli = model.stimuli(percepts)
-        whole = simulate(model, state, START, 7200.0, stimuli, running=running)
-        lean = simulate(model, state, START, 7200.0, stimuli, running=running, only_dominant=True)
-        assert np.array_equal(lean.dominant, whole.dominant)
-        assert np.array_equal(lean.seconds, whole.seconds)
-        assert np.array_equal(lean.final.drives, whole.final.drives)
-        assert lean.final.dominant == whole.final.dominant
-        assert lean.drives.shape == (0, len(model.names)) and lean.wellbeing.size == 0
 
 
 def test_the_tracker_accounts_each_span_and_its_hours() -> None:

@@ -1,4 +1,4 @@
-"""Claims of occurrences: one robot of a fleet delivers each one (issue 15).
+"""Claims of occurrences: one robot of a fleet delivers each one.
 
 Revision ID: agenda_0002
 Revises: agenda_0001

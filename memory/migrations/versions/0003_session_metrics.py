@@ -1,4 +1,4 @@
-"""Each session's Table 4 metrics, measured by the daemon (issue 12, item 8).
+"""Each session's Table 4 metrics, measured by the daemon.
 
 Revision ID: memory_0003
 Revises: memory_0002

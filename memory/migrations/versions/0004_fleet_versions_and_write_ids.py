@@ -1,4 +1,4 @@
-"""Several robots on one profile (issue 15): a version per user row, applied write ids.
+"""Several robots on one profile: a version per user row, applied write ids.
 
 ``users.version`` is the optimistic lock of field writes (0 for the rows that exist
 before it); ``applied_writes`` holds the unique id of each applied write so that a

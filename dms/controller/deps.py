@@ -1,0 +1,66 @@
+"""What the controller works with (:class:`ControllerDeps`) and what it counts."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from activities import BehaviorLibrary
+from agenda import Agenda
+from dms.kernel.expression import ExpressionArbiter
+from dms.profiles import ProfileService
+from dms.rules import LiveRules
+from dms.scene import Scene
+from memory import ActivityChooser, QuestionBank
+from motivation import MotivationModel
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class ControllerDeps:
+    """Everything the controller works with; the daemon and the simulator build it."""
+
+    library: BehaviorLibrary
+    expression: ExpressionArbiter
+    motivation: MotivationModel
+    profiles: ProfileService | None = None
+    agenda: Agenda | None = None
+    rules: LiveRules | None = None
+    chooser: ActivityChooser | None = None
+    questions: QuestionBank | None = None
+    report_error: Callable[[str, str], None] = lambda key, error: None
+    robot_state: Callable[[], Mapping[str, Any]] = dict
+    scene: Scene | None = None
+    """The frames behaviors aim at (the user's face, objects, the body); None: no gaze."""
+
+
+@dataclass
+class Counters:
+    """Running totals for metrics and studies."""
+
+    ticks: int = 0
+    decisions: int = 0
+    activity_failures: int = 0
+    not_loaded: int = 0
+    unanswered: int = 0
+    misheard: int = 0
+    """Utterances under ``min_speech_confidence``: speech recognition errors."""
+    by_reason: dict[str, int] = field(default_factory=dict)
+
+
+def agenda_call(deps: ControllerDeps, method: str, *args: Any) -> Any:
+    """Call the agenda's ``method``; None if there is no agenda or the call failed.
+
+    The agenda's database may fail: the failure is reported and the loop goes on.
+    """
+    if deps.agenda is None:
+        return None
+    try:
+        return getattr(deps.agenda, method)(*args)
+    except Exception as error:
+        log.exception("agenda.%s failed", method)
+        deps.report_error("agenda", f"{method}: {error}")
+        return None

@@ -1,0 +1,104 @@
+"""Ctrl-C at any moment of ``dms run`` ends it quietly with 130, and ``dms --version``
+answers without loading the decision stack.
+
+Each case is a real process: SIGINT is sent right after it is spawned, while it imports
+(the moment is an import line of ``python -X importtime``), while it sets up a fresh
+database (its first log line) and once it is ready. Every wait is for a line on stderr.
+The quiet exit starts with ``dms.cli.main``: Python's own start and the import of
+``dms.cli`` (typer) come before it, a few tens of milliseconds.
+"""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tests.integration.harness import READY_TIMEOUT_S, StderrLines, free_port
+
+pytestmark = pytest.mark.integration
+
+INTERRUPTED = 130
+"""The exit code after Ctrl-C (128 + SIGINT), as a shell reports it."""
+
+
+def spawn(tmp: Path, *python_flags: str) -> subprocess.Popen[str]:
+    """``dms run`` on a fresh SQLite file in ``tmp`` and a free loopback port."""
+    command = [sys.executable, *python_flags, "-m", "dms.cli", "run", "--quiet"]
+    command += ["--db", str(tmp / "dms.db"), "--listen", f"tcp/127.0.0.1:{free_port()}"]
+    command += ["--seed", "1", "--log-level", "info"]
+    return subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+
+def interrupt(proc: subprocess.Popen[str], lines: StderrLines) -> tuple[int, str]:
+    """SIGINT now; the exit code and everything the process wrote on stderr."""
+    proc.send_signal(signal.SIGINT)
+    try:
+        code = proc.wait(30)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait(10)
+        raise AssertionError("still running 30 s after SIGINT:\n" + lines.text()) from None
+    return code, lines.text()
+
+
+def test_ctrl_c_right_after_spawn_is_quiet(tmp_path: Path) -> None:
+    proc = spawn(tmp_path)
+    code, stderr = interrupt(proc, StderrLines(proc))
+    # Before Python has put in its handler the signal's default action ends the process,
+    # which a shell reports as 130 too.
+    assert code in (INTERRUPTED, -signal.SIGINT), stderr
+    assert "Traceback" not in stderr, stderr
+
+
+@pytest.mark.parametrize("module", ["sqlalchemy.orm", "lark", "dms.daemon"])
+def test_ctrl_c_while_importing_is_quiet(tmp_path: Path, module: str) -> None:
+    proc = spawn(tmp_path, "-X", "importtime")
+    lines = StderrLines(proc)
+    lines.wait_for(lambda line: line.startswith("import time:") and line.strip().endswith(module))
+    code, stderr = interrupt(proc, lines)
+    assert code == INTERRUPTED, stderr
+    assert "Traceback" not in stderr, stderr
+
+
+def test_ctrl_c_while_the_database_is_made_is_quiet_and_leaves_it_usable(
+    tmp_path: Path,
+) -> None:
+    proc = spawn(tmp_path)
+    lines = StderrLines(proc)
+    lines.wait_for(lambda line: line.strip() != "")  # the migrations log first
+    code, stderr = interrupt(proc, lines)
+    assert code == INTERRUPTED, stderr
+    assert "Traceback" not in stderr, stderr
+
+    again = spawn(tmp_path)
+    again_lines = StderrLines(again)
+    again_lines.wait_for("ready on", READY_TIMEOUT_S)
+    code, stderr = interrupt(again, again_lines)
+    assert code == INTERRUPTED, stderr
+
+
+def test_ctrl_c_once_ready_stops_cleanly_with_130(tmp_path: Path) -> None:
+    proc = spawn(tmp_path)
+    lines = StderrLines(proc)
+    lines.wait_for("ready on", READY_TIMEOUT_S)
+    code, stderr = interrupt(proc, lines)
+    assert code == INTERRUPTED, stderr
+    assert "Traceback" not in stderr, stderr
+
+
+def test_version_and_help_load_no_package_of_the_stack() -> None:
+    heavy = ("numpy", "sqlalchemy", "zenoh", "pydantic", "activities", "memory", "agenda")
+    code = (
+        "import sys\nfrom dms.cli import main\n"
+        "for argv in (['--version'], ['--help']):\n"
+        "    assert main(argv) == 0\n"
+        f"print(sorted(m for m in {heavy!r} if m in sys.modules))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True
+    )
+    assert done.stdout.strip().splitlines()[-1] == "[]"
