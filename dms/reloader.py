@@ -7,6 +7,11 @@ so a tick sees either the old or the new version, never half of one). Requests t
 arrive while a reload runs are served by one more reload after it, and reloads start
 at most every :data:`MIN_INTERVAL_S`: a flood of a thousand requests a second costs four
 reloads a second, and the 2 Hz loop never waits for a compile.
+
+A reload cannot be interrupted (it runs Python code that swaps objects in), so it is
+watched instead: one still running after :data:`DEADLINE_S` is reported on ``dms/errors``
+and in the log, and stopping the daemon never waits for it (the thread is a daemon
+thread, dropped at exit).
 """
 
 from __future__ import annotations
@@ -21,6 +26,10 @@ log = logging.getLogger(__name__)
 MIN_INTERVAL_S = 0.25
 """A reload waits this long after the start of the previous one (a lone request: none)."""
 
+DEADLINE_S = 10.0
+"""A reload still running after this long is reported (the verifier and the YAML loader
+bound their work, so it takes a folder far larger than a robot's to get there)."""
+
 ReloadJob = Callable[[], list[tuple[str, str]]]
 """Does one reload; returns ``(key, problem)`` lines for ``dms/errors`` (empty: all in force)."""
 
@@ -33,9 +42,12 @@ class Reloader:
         job: ReloadJob,
         report: Callable[[str, str], None],
         min_interval_s: float = MIN_INTERVAL_S,
+        deadline_s: float = DEADLINE_S,
     ) -> None:
         self._job = job
         self._min_interval_s = min_interval_s
+        self._deadline_s = deadline_s
+        self._busy = threading.Event()
         self._report = report
         self._wanted = threading.Event()
         self._stopped = threading.Event()
@@ -60,11 +72,20 @@ class Reloader:
                 return
             self._wanted.clear()
             last_start = time.monotonic()
+            watch = threading.Timer(self._deadline_s, self._overdue)
+            watch.daemon = True
+            self._busy.set()
+            watch.start()
             try:
                 problems = self._job()
             except Exception as error:  # a reload must never take the daemon down
                 log.exception("reload failed")
                 problems = [("reload", f"reload failed: {type(error).__name__}: {error}")]
+            finally:
+                watch.cancel()
+                self._busy.clear()
+            if self._stopped.is_set():  # the daemon is closing: nowhere to report to
+                return
             with self._idle:
                 self.reloads += 1
                 self._idle.notify_all()
@@ -73,15 +94,28 @@ class Reloader:
             if not problems:
                 log.info("rules and behaviors reloaded")
 
+    def _overdue(self) -> None:
+        """The watch's timer: this reload is past its deadline (it goes on regardless)."""
+        if self._stopped.is_set():
+            return
+        log.warning("reload still running after %g s", self._deadline_s)
+        self._report(
+            "reload",
+            f"reload still running after {self._deadline_s:g} s; the previous rules and "
+            "behaviors stay in force until it ends, and later reloads wait for it",
+        )
+
     def wait_idle(self, reloads: int, timeout_s: float) -> bool:
         """Wait until at least ``reloads`` reloads have finished (for tests and benchmarks)."""
         with self._idle:
             return self._idle.wait_for(lambda: self.reloads >= reloads, timeout_s)
 
     def stop(self, timeout_s: float = 1.0) -> None:
-        """Stop the worker; a reload under way finishes in its own time (the thread is a
-        daemon thread, so it never holds the process at exit)."""
+        """Stop the worker; an idle one ends at once. A reload under way is not waited
+        for: it finishes in its own time, or is dropped at exit (a daemon thread)."""
         self._stopped.set()
         self._wanted.set()
-        if self._thread.is_alive():
+        if self._busy.is_set():
+            log.info("stopping during a reload: not waiting for it")
+        elif self._thread.is_alive():
             self._thread.join(timeout_s)

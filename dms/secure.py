@@ -384,13 +384,33 @@ def planned_files(directory: Path) -> list[Path]:
     return [directory / name for name in names]
 
 
+def _refuse_links(paths: Sequence[Path]) -> None:
+    """Refuse a symbolic link (or anything but a regular file) where a file goes.
+
+    Whoever can write into the folder could plant ``ca.key -> /somewhere/else``; writing
+    through it would put the CA key there. Checked before anything is written; the
+    writes themselves never follow a link either (:func:`_write`).
+    """
+    for path in paths:
+        if path.is_symlink():
+            raise ConfigError(f"{path} is a symbolic link; refusing to write through it")
+        if path.exists() and not path.is_file():
+            raise ConfigError(f"{path} is not a regular file; refusing to replace it")
+
+
 def _write(path: Path, data: bytes, private: bool) -> None:
-    """Write ``data``; a key is created 0600 from the start, never readable in between."""
+    """Write ``data`` into a new file: an old one is removed first, and the new one is
+    created exclusively (a link planted since the check makes it fail, not write through
+    it), 0600 for a key from the start, never readable in between."""
     mode = 0o600 if private else 0o644
-    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, mode)
+    path.unlink(missing_ok=True)  # removes a link itself, never what it points to
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, mode)
+    except FileExistsError:
+        raise ConfigError(f"{path} appeared while writing; refusing to write through it") from None
     with os.fdopen(fd, "wb") as out:
+        os.fchmod(out.fileno(), mode)  # O_CREAT's mode passes the umask
         out.write(data)
-    os.chmod(path, mode)  # O_CREAT's mode is only for new files and passes the umask
 
 
 def init(
@@ -398,13 +418,14 @@ def init(
 ) -> list[Path]:
     """Write the CA, a certificate, key and Zenoh config per role into ``directory``.
 
-    Refuses (ConfigError, nothing written) a bad robot id or endpoint, and a directory
-    that already holds any of the files unless ``force``: overwriting a CA silently would
-    lock every deployed program out.
+    Refuses (ConfigError, nothing written) a bad robot id or endpoint, a symbolic link
+    where one of the files goes, and a directory that already holds any of the files
+    unless ``force``: overwriting a CA silently would lock every deployed program out.
     """
     check_robot_id(robot_id)
     host, _port = parse_listen(listen)
     paths = planned_files(directory)
+    _refuse_links(paths)
     existing = [p.name for p in paths if p.exists()]
     if existing and not force:
         raise ConfigError(
@@ -465,8 +486,9 @@ def renew(directory: Path, role: str) -> list[Path]:
     """
     if role not in ROLES:
         raise ConfigError(f"unknown role {role!r}: one of {', '.join(ROLES)}")
+    cert_path, key_path = directory / f"{role}.pem", directory / f"{role}.key"
+    _refuse_links([cert_path, key_path])
     ca = _load_ca(directory)
-    cert_path = directory / f"{role}.pem"
     try:
         old = x509.load_pem_x509_certificate(cert_path.read_bytes())
     except (OSError, ValueError) as error:
@@ -479,7 +501,6 @@ def renew(directory: Path, role: str) -> list[Path]:
     hosts = [str(ip) for ip in san.get_values_for_type(x509.IPAddress)]
     hosts += san.get_values_for_type(x509.DNSName)
     issued = issue(ca, role, robot_id, hosts)
-    key_path = directory / f"{role}.key"
     try:
         _write(key_path, key_pem(issued.key), private=True)
         _write(cert_path, cert_pem(issued.cert), private=False)

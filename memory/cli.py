@@ -27,6 +27,7 @@ from memory import migrations
 from memory.db import as_url, default_url, make_engine
 from memory.errors import ProfileError
 from memory.profile import ALIASES, FIELDS, validate_fields
+from memory.schema_history import SchemaHistory
 from memory.store import ProfileStore
 
 app = typer.Typer(no_args_is_help=True)
@@ -228,6 +229,7 @@ def upgrade_profiles(url: str) -> list[str]:
 
     ``dms db upgrade`` (the composition root, dms/cli.py) runs this, then the agenda's own.
     """
+    refuse_newer(migrations.HISTORY, url, "profile")
     try:
         engine = make_engine(url)
         try:
@@ -245,6 +247,31 @@ def upgrade_profiles(url: str) -> list[str]:
     if recreated:
         said.append(f"profiles: recreated the missing table(s) {', '.join(recreated)}, empty")
     return said
+
+
+def refuse_newer(history: SchemaHistory, url: str, what: str) -> None:
+    """Refuse in one line a database whose ``what`` schema is at a revision this dms does
+    not know: a newer dms upgraded it, and no migration here can go back from it."""
+    try:
+        engine = make_engine(url)
+        try:
+            with engine.connect() as connection:
+                found = history.current(connection)
+        finally:
+            engine.dispose()
+    except SQLAlchemyError:
+        return  # the upgrade itself says what is wrong with the database
+    if found is None or found == history.head():
+        return
+    from alembic.script import ScriptDirectory
+
+    script = ScriptDirectory.from_config(history.config())
+    if found in {revision.revision for revision in script.walk_revisions()}:
+        return
+    raise ProfileError(
+        f"cannot upgrade {url}: its {what} schema {found} is newer than this dms knows "
+        f"(up to {history.head()}); upgrade dms to use this database"
+    )
 
 
 def first_line(error: BaseException) -> str:

@@ -1,11 +1,12 @@
-"""Static checks of parsed DMSL programs (DESIGN.md, "Verification").
+"""Static checks of parsed DMSL programs (docs/dmsl.md, "The verifier").
 
 :func:`verify` takes every program that is loaded together (definitions and components
 share one namespace across files) and returns every problem found: duplicates,
 unknown names and components, ``def`` and ``evaluate`` cycles, type errors, unknown
-parameters (with a schema), constant conditions, branches that can never run and
-components that never activate anything. :func:`outcome_problems` checks activations
-against the outcomes a state machine state declares.
+parameters (with a schema), rules too big to check (:mod:`.budget`), constant
+conditions, branches that can never run and components that never activate anything.
+:func:`outcome_problems` checks activations against the outcomes a state machine state
+declares.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from collections.abc import Callable, Collection, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 
 from dms.rules import nodes as n
+from dms.rules.budget import oversized
 from dms.rules.compiler import _Compiler, _Run, uses_params
 from dms.rules.problems import Problem
 from dms.rules.schema import ParameterSchema
@@ -100,6 +102,7 @@ class _Checker:
     components: dict[str, n.Component] = field(default_factory=dict)
     broken_names: set[str] = field(default_factory=set)
     kinds: dict[str, Kind | None] = field(default_factory=dict)
+    params_read: dict[int, bool] = field(default_factory=dict)
 
     def report(self, pos: n.Pos, message: str) -> None:
         self.problems.append(Problem.at(pos, message, self.sources.get(pos.file)))
@@ -290,6 +293,20 @@ class _Checker:
             say(expr.pos, f"type error: a {element.value} is never in a set of {kinds}")
         return Kind.BOOLEAN
 
+    def check_size(self) -> None:
+        """Refuse what is too big to check or run once ``def``s are written out."""
+        conditions = sorted(
+            (
+                stmt.cond
+                for component in self.components.values()
+                for stmt in walk_stmts(component.body)
+                if isinstance(stmt, n.If)
+            ),
+            key=lambda cond: (cond.pos.file, cond.pos.line, cond.pos.column),
+        )
+        for pos, message in oversized(self.definitions, conditions, self.broken_names):
+            self.report(pos, message)
+
     def check_types(self) -> None:
         for definition in self.definitions.values():
             if definition.name not in self.broken_names:
@@ -323,9 +340,16 @@ class _Checker:
         self.activates[name] = found
         return found
 
+    def reads_params(self, expr: n.Expr) -> bool:
+        """:func:`uses_params`, once per node: :meth:`truth` asks at every node."""
+        key = id(expr)  # the nodes live as long as the checker's programs
+        if key not in self.params_read:
+            self.params_read[key] = uses_params(expr, self.definitions)
+        return self.params_read[key]
+
     def truth(self, expr: n.Expr, assumed: Mapping[n.Expr, Truth]) -> Truth:
         """The truth values ``expr`` can take on this path (Kleene, ``None`` unknown)."""
-        if not uses_params(expr, self.definitions):
+        if not self.reads_params(expr):
             value = self.compiler.expr(expr)(_Run({}))
             return frozenset({value if isinstance(value, bool) else None})
         base = assumed.get(expr, ALL)
@@ -405,6 +429,7 @@ def verify(
         checker.collect()
         checker.check_names()
         checker.check_cycles()
+        checker.check_size()
         checker.check_types()
         if not checker.problems:  # flow analysis runs the constant parts: sound code only
             checker.flow()
@@ -444,11 +469,11 @@ def outcome_problems(
 def activation_warnings(programs: Iterable[n.Program]) -> list[Problem]:
     """Components that may activate nothing: some path through them activates nothing.
 
-    A warning, not an error (DESIGN.md: "components that may activate nothing"): the
-    caller's built-in logic decides on such a path, as the seed's ``ObstacleDetected``
-    intends. Run it on rules that :func:`verify` accepts (no cycles, no dead branches), so
-    that every branch can run. The warning points at the first statement on such a path
-    that may activate nothing, typically an ``if`` without an ``else``.
+    A warning, not an error: the caller's built-in logic decides on such a path, as the
+    DMSL paper's ``ObstacleDetected`` intends. Run it on rules that :func:`verify` accepts
+    (no cycles, no dead branches), so that every branch can run. The warning points at
+    the first statement on such a path that may activate nothing, typically an ``if``
+    without an ``else``.
     """
     components = {
         item.name: item

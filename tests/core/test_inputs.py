@@ -126,3 +126,27 @@ def test_an_event_flood_is_bounded_and_counted() -> None:
         board.accept(keys.PERCEPTION_SCREEN, Touch(part="head", kind="tap"), float(i))
     assert len(board.take(1000.0).events) == 256
     assert board.counters.dropped_events == 1000 - 256
+
+
+def test_params_keep_at_most_the_bound_of_names_dropping_the_one_set_longest_ago() -> None:
+    board = InputBoard(max_param_names=3)
+    board.accept(keys.PARAMS_ENV, ProfileParams(values={"a": 1, "b": 2, "c": 3}), 1.0)
+    board.accept(keys.PARAMS_ENV, ProfileParams(values={"a": 10}), 1.1)  # a is newest now
+    board.accept(keys.PARAMS_ENV, ProfileParams(values={"d": 4, "e": 5}), 1.2)
+    assert board.take(2.0).env_params == {"a": 10, "d": 4, "e": 5}
+    board.accept(keys.PARAMS_ROBOT, ProfileParams(values={"x": 1, "y": 2, "z": 3, "w": 4}), 2.1)
+    assert board.take(2.2).robot_params == {"y": 2, "z": 3, "w": 4}
+    due = {drops.key: (drops.count, drops.total) for drops in board.params_dropped.due(3.0)}
+    assert due == {keys.PARAMS_ENV: (2, 2), keys.PARAMS_ROBOT: (1, 1)}
+
+
+@pytest.mark.parametrize("key", [keys.PARAMS_ENV, keys.PARAMS_ROBOT])
+def test_a_params_name_and_value_are_bounded_in_size(key: str) -> None:
+    assert parse_input(key, json.dumps({"n" * 64: "v" * 1024}).encode())
+    for payload, fragment in [
+        ({"n" * 65: 1}, "n" * 65),
+        ({"name": "v" * 1025}, "1024"),
+        ({f"n{i}": i for i in range(257)}, "256"),
+    ]:
+        with pytest.raises(InputRejected, match=fragment):
+            parse_input(key, json.dumps(payload).encode())

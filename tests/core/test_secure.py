@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import ipaddress
 import json
+import os
 import stat
 from pathlib import Path
 
@@ -236,3 +237,48 @@ def test_renew_replaces_one_roles_key_from_the_same_ca(tmp_path: Path) -> None:
         secure.renew(tmp_path, "guest")
     with pytest.raises(ConfigError, match="cannot read the CA"):
         secure.renew(tmp_path / "elsewhere", "app")
+
+
+def test_a_planted_symlink_is_refused_and_nothing_is_written_through_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    folder, victim = tmp_path / "sec", tmp_path / "victim"
+    secure.init(folder, "mini")
+    before = {path.name: path.read_bytes() for path in folder.iterdir()}
+    (folder / "ca.key").unlink()
+    (folder / "ca.key").symlink_to(victim)
+    assert main(["secure", "init", str(folder), "--robot-id", "mini", "--force"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"dms: {folder / 'ca.key'} is a symbolic link; refusing to write through it"]
+    assert not victim.exists()
+    assert (folder / "ca.pem").read_bytes() == before["ca.pem"]  # nothing written at all
+
+    (folder / "app.key").unlink()
+    (folder / "app.key").symlink_to(victim)
+    assert main(["secure", "renew", str(folder), "app"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"dms: {folder / 'app.key'} is a symbolic link; refusing to write through it"]
+    assert not victim.exists()
+    assert (folder / "app.pem").read_bytes() == before["app.pem"]
+
+
+def test_a_dangling_symlink_is_refused_without_force_too(tmp_path: Path) -> None:
+    (tmp_path / "dms.key").symlink_to(tmp_path / "elsewhere.key")
+    with pytest.raises(ConfigError, match=r"dms\.key is a symbolic link"):
+        secure.init(tmp_path, "mini")
+    assert not (tmp_path / "elsewhere.key").exists() and not (tmp_path / "ca.key").exists()
+
+
+def test_force_writes_new_files_and_keys_are_0600_whatever_the_old_mode(tmp_path: Path) -> None:
+    secure.init(tmp_path, "mini")
+    old = tmp_path / "ca.key"
+    old.chmod(0o644)
+    old_inode = old.stat().st_ino
+    hard_link = tmp_path / "kept-elsewhere"
+    os.link(old, hard_link)  # another name of the old file keeps its bytes untouched
+    kept = hard_link.read_bytes()
+    secure.init(tmp_path, "mini", force=True)
+    assert stat.S_IMODE(old.stat().st_mode) == 0o600
+    assert old.stat().st_ino != old_inode
+    assert hard_link.read_bytes() == kept
+    assert stat.S_IMODE((tmp_path / "ca.pem").stat().st_mode) == 0o644

@@ -1,6 +1,6 @@
-"""Issue 15, item 1: a fleet's router with the hardening's TLS and access control.
+"""A fleet's router with mutual TLS and access control.
 
-``dms secure init`` writes the CA and each role's certificate (issue 11). Here the
+``dms secure init`` writes the CA and each role's certificate. Here the
 router (``dms router --zenoh-config``) listens on mutual TLS and is the point where
 access control is enforced: its JSON5 denies the ``app`` role the residents' data
 (``users/*`` queries) and allows the rest. A daemon connects to it over TLS; the
@@ -103,7 +103,8 @@ def _secured_fleet(tmp: Path) -> Iterator[tuple[zenoh.Session, zenoh.Session]]:
     daemon["access_control"] = {"enabled": False}  # behind the router, which enforces it
     daemon_file = _write(tmp / "daemon.json5", daemon)
     toml = tmp / "dms.toml"
-    toml.write_text("[privacy]\nserve_profiles = true\n")
+    # new_user_after_s = 0: Ann's profile is stored at once, not after she has stayed
+    toml.write_text("[privacy]\nserve_profiles = true\n[controller]\nnew_user_after_s = 0\n")
     with ExitStack() as stack:
         router_proc = _dms("router", "--zenoh-config", str(router))
         stack.callback(router_proc.kill)

@@ -1,4 +1,4 @@
-"""Issue 13, item 2 from outside: ``dms foxglove`` between a real daemon and a client
+"""From outside: ``dms foxglove`` between a real daemon and a client
 that speaks Foxglove's WebSocket protocol (as the Foxglove app does).
 
 The bridge is a process, a Zenoh client of the daemon on 127.0.0.1; the test's client
@@ -34,7 +34,7 @@ SUBPROTOCOLS = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
 class Bridge:
     """``dms foxglove`` in a subprocess; ready when it prints its WebSocket address."""
 
-    def __init__(self, daemon_port: int) -> None:
+    def __init__(self, daemon_port: int, *options: str) -> None:
         self.port = free_port()
         self.proc = subprocess.Popen(
             [
@@ -46,6 +46,7 @@ class Bridge:
                 f"tcp/127.0.0.1:{daemon_port}",
                 "--port",
                 str(self.port),
+                *options,
             ],
             stdout=subprocess.DEVNULL,
             stderr=subprocess.PIPE,
@@ -184,3 +185,96 @@ def test_a_port_in_use_and_an_unreachable_daemon_are_one_line_each() -> None:
     assert done.returncode == 1
     assert f"tcp/127.0.0.1:{nobody}" in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1, done.stderr
+
+
+async def _handshake(port: int, origin: str | None) -> str:
+    """Open a Foxglove WebSocket with ``origin`` (None: no header): its first message's op,
+    or ``refused <status>``."""
+    try:
+        async with websockets.connect(
+            f"ws://127.0.0.1:{port}",
+            subprotocols=SUBPROTOCOLS,
+            origin=origin,  # type: ignore[arg-type]
+            open_timeout=20,
+        ) as ws:
+            first = await asyncio.wait_for(ws.recv(), 20)
+            return str(json.loads(first)["op"])
+    except websockets.exceptions.InvalidStatus as error:
+        return f"refused {error.response.status_code}"
+
+
+def test_a_foreign_web_origin_is_refused_and_native_and_loopback_clients_connect(
+    tmp_path: Path,
+) -> None:
+    with running_daemon(tmp_path) as (daemon, _session):
+        bridge = Bridge(daemon.port, "--allow-origin", "https://app.foxglove.dev")
+        try:
+            bridge.wait_ready()
+            port = bridge.port
+            assert asyncio.run(_handshake(port, "https://evil.example")) == "refused 403"
+            assert asyncio.run(_handshake(port, "null")) == "refused 403"
+            assert asyncio.run(_handshake(port, None)) == "serverInfo"
+            assert asyncio.run(_handshake(port, f"http://localhost:{port}")) == "serverInfo"
+            assert asyncio.run(_handshake(port, "https://app.foxglove.dev")) == "serverInfo"
+            bridge.stderr.wait_for("refused a WebSocket from origin https://evil.example")
+        finally:
+            assert bridge.stop() == 0
+
+
+SECRET = "my pin is 4321"
+
+
+async def _private_session(port: int, daemon_session: Any) -> FoxgloveClient:
+    """Say a secret and let a user arrive; read until a touch that came after both."""
+    async with websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=SUBPROTOCOLS) as ws:
+        client = FoxgloveClient(ws)
+        state, user = "/robots/mini/dms/state", "/robots/mini/perception/user"
+        touch = "/robots/mini/perception/touch"
+        ann = {"present": True, "user_id": "ann", "ready": True}
+        await client.until(lambda: state in client.channels)
+        await client.subscribe(state)
+        put(daemon_session, "perception/user", ann)
+        await client.until(lambda: user in client.channels)
+        await client.subscribe(user)
+        # Two states published well after the subscription show that the server has it;
+        # then the user again, for the new subscription.
+        sent = time.time() + 0.5
+        await client.until(lambda: sum(_time(m) > sent for m in client.seen.get(state, [])) >= 2)
+        put(daemon_session, "perception/user", ann)
+        await client.until(
+            lambda: any(m.get("user") for m in client.seen[state]) and bool(client.seen.get(user))
+        )
+        put(daemon_session, "perception/speech", {"text": SECRET, "confidence": 0.9})
+        # The touch is put after the speech by the same session: once the bridge has
+        # forwarded it, it has had the speech.
+        put(daemon_session, "perception/touch", {"part": "head", "kind": "tap"})
+        await client.until(lambda: touch in client.channels)
+        return client
+
+
+def _seen_text(client: FoxgloveClient) -> str:
+    return json.dumps([client.channels, client.seen])
+
+
+def test_speech_and_user_ids_are_held_back_unless_asked_for(tmp_path: Path) -> None:
+    with running_daemon(tmp_path) as (daemon, session):
+        bridge = Bridge(daemon.port)
+        try:
+            bridge.wait_ready()
+            client = asyncio.run(_private_session(bridge.port, session))
+        finally:
+            assert bridge.stop() == 0
+        assert "/robots/mini/perception/speech" not in client.channels
+        assert SECRET not in _seen_text(client) and '"ann"' not in _seen_text(client)
+        states = [m for m in client.seen["/robots/mini/dms/state"] if m.get("user")]
+        assert states[-1]["user"]["id"] == "(hidden)"
+        assert client.seen["/robots/mini/perception/user"][-1]["user_id"] == "(hidden)"
+
+        bridge = Bridge(daemon.port, "--personal-data")
+        try:
+            bridge.wait_ready()
+            client = asyncio.run(_private_session(bridge.port, session))
+        finally:
+            assert bridge.stop() == 0
+        assert "/robots/mini/perception/speech" in client.channels
+        assert client.seen["/robots/mini/perception/user"][-1]["user_id"] == "ann"

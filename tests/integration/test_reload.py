@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import shutil
 import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -16,7 +19,14 @@ import pytest
 import zenoh
 
 from activities.library import BEHAVIORS_DIR
-from tests.integration.harness import Collector, DaemonProcess, put, query, running_daemon
+from tests.integration.harness import (
+    Collector,
+    DaemonProcess,
+    free_port,
+    put,
+    query,
+    running_daemon,
+)
 
 pytestmark = pytest.mark.integration
 
@@ -163,3 +173,96 @@ def _state_names(node: dict[str, Any]) -> set[str]:
     for child in node.get("states") or []:
         names |= _state_names(child)
     return names
+
+
+def _rules_bomb(activity: str) -> str:
+    """Valid rules whose ``def``s each use the previous one twice: two to the fortieth
+    terms written out, refused by the verifier's budget at the first ``def`` over it."""
+    lines = ["def d0 params.user.age > 3"]
+    lines += [f"def d{i} d{i - 1} and not d{i - 1}" for i in range(1, 40)]
+    return (
+        "\n".join(lines)
+        + "\n"
+        + _rules(activity).replace('[ activate "', '[ if d39 then activate "', 1)
+    )
+
+
+def test_a_rules_bomb_is_refused_on_reload_and_sigterm_during_a_reload_is_prompt(
+    tmp_path: Path,
+) -> None:
+    rules = tmp_path / "decisions.dmsl"
+    rules.write_text(_rules("jokes"))
+    config = '[rules]\nfiles = ["decisions.dmsl"]\n'
+    with running_daemon(tmp_path, extra_config=config) as (daemon, session):
+        decisions = Collector(session, "robots/mini/dms/decision")
+        errors = Collector(session, "robots/mini/dms/errors")
+        states = Collector(session, "robots/mini/dms/state")
+        put(session, "perception/user", ANN_READY)
+        assert _robot_pick(decisions, 0)["detail"] == "rule ChooseEntertainment -> jokes"
+
+        rules.write_text(_rules_bomb("news"))
+        started = time.monotonic()
+        _hup(daemon)
+        report = errors.wait_for(lambda e: e["key"] == "rules", timeout=20)
+        assert time.monotonic() - started < 5, "the verifier's budget bounds the reload"
+        assert f"{rules}:12:1: too complex to verify here" in report["error"], report
+        states.wait_for(lambda s: s["reloads"] == 1)
+        assert _cancel_and_pick(session, decisions, "jokes") == "rule ChooseEntertainment -> jokes"
+
+        _hup(daemon)  # and stop at once, the reload under way
+        assert daemon.proc is not None
+        started = time.monotonic()
+        code = daemon.terminate()
+        stopped_in = time.monotonic() - started
+    assert code == 0
+    assert stopped_in < 2, f"SIGTERM during a reload took {stopped_in:.1f} s"
+
+
+def test_an_alias_bomb_in_a_behavior_is_refused_on_reload(tmp_path: Path) -> None:
+    folder = tmp_path / "behaviors"
+    shutil.copytree(BEHAVIORS_DIR, folder)
+    with running_daemon(tmp_path, extra_config='[behaviors]\nfolder = "behaviors"\n') as (
+        daemon,
+        session,
+    ):
+        errors = Collector(session, "robots/mini/dms/errors")
+        states = Collector(session, "robots/mini/dms/state")
+        lines = ["name: bomb", "outcomes: [done]", "userdata:", "  a0: &a0 [x, x, x, x, x, x]"]
+        lines += [f"  a{i}: &a{i} [{', '.join([f'*a{i - 1}'] * 9)}]" for i in range(1, 9)]
+        (folder / "bomb.yaml").write_text("\n".join([*lines, "states: {S: {wait: {seconds: 1}}}"]))
+        started = time.monotonic()
+        _hup(daemon)
+        report = errors.wait_for(lambda e: e["key"] == "behaviors", timeout=20)
+        assert time.monotonic() - started < 5
+        assert str(folder / "bomb.yaml") in report["error"]
+        assert (
+            "aliases written out add more than" in report["error"] and "\n" not in report["error"]
+        )
+        states.wait_for(lambda s: s["reloads"] == 1)
+        assert daemon.terminate() == 0
+
+
+def test_a_daemon_started_with_a_rules_bomb_refuses_it_in_one_line(tmp_path: Path) -> None:
+    (tmp_path / "decisions.dmsl").write_text(_rules_bomb("news"))
+    config = tmp_path / "dms.toml"
+    config.write_text('[rules]\nfiles = ["decisions.dmsl"]\n')
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "dms.cli",
+            "run",
+            "--config",
+            str(config),
+            "--db",
+            f"sqlite:///{tmp_path / 'dms.db'}",
+            "--listen",
+            f"tcp/127.0.0.1:{free_port()}",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 1
+    assert done.stderr.startswith("dms: rules: "), done.stderr
+    assert "too complex to verify here" in done.stderr

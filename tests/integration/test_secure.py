@@ -306,3 +306,33 @@ def test_sigterm_still_stops_a_secured_daemon(tmp_path: Path) -> None:
     finally:
         daemon.kill()
         app.close()
+
+
+def test_the_commands_refuse_a_symlink_planted_in_the_folder(tmp_path: Path) -> None:
+    """``dms secure init --force`` and ``renew`` as a shell runs them: a link planted
+    where a key goes is named in one line, and the file it points to is never written."""
+    folder, victim = tmp_path / "sec", tmp_path / "victim"
+    secure.init(folder, "mini")
+
+    def dms_secure(*args: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(
+            [sys.executable, "-m", "dms.cli", "secure", *args],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+
+    for planted, args in [
+        ("ca.key", ("init", str(folder), "--robot-id", "mini", "--force")),
+        ("robot.key", ("renew", str(folder), "robot")),
+    ]:
+        (folder / planted).unlink()
+        (folder / planted).symlink_to(victim)
+        done = dms_secure(*args)
+        assert done.returncode == 1
+        assert done.stderr.strip().splitlines() == [
+            f"dms: {folder / planted} is a symbolic link; refusing to write through it"
+        ]
+        assert not victim.exists()
+        (folder / planted).unlink()
+    assert dms_secure("init", str(folder), "--robot-id", "mini", "--force").returncode == 0
