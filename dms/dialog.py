@@ -43,6 +43,8 @@ class Dialog:
     answer: str | None = None
     channel: str | None = None
     """"voice" or "screen": how the answer came."""
+    asked: datetime | None = None
+    """When the question was last put (by :meth:`ask`)."""
 
     def ask(self, expression: ExpressionArbiter, now: datetime, style: str = "voice") -> None:
         """Put the question in the user's interaction style (the paper's Table 2).
@@ -51,6 +53,7 @@ class Dialog:
         it shows the choices and says to answer on the screen. The screen shows the
         choices in both, and an answer by either channel is taken.
         """
+        self.asked = now
         spoken = self.question
         if self.choices and style == "screen":
             spoken = f"{self.question} Please answer on the screen."
@@ -71,16 +74,28 @@ class Dialog:
         """Take ``text`` as the answer if it is one; True if taken."""
         if self.answer is not None:
             return False
-        if self.kind is DialogKind.FEEDBACK:
-            text = normalize_feedback(text)
-        answer = match_choice(text, self.choices) if self.choices else text.strip()
-        if not answer:
+        answer = self.answer_in(text)
+        if answer is None:
             return False
         self.answer, self.channel = answer, channel
         return True
 
+    def answer_in(self, text: str) -> str | None:
+        """The answer ``text`` gives (one of the choices, or any words if there are none)."""
+        if self.kind is DialogKind.FEEDBACK:
+            text = normalize_feedback(text)
+        if self.choices:
+            return match_choice(text, self.choices)
+        return text.strip() or None
+
     def expired(self, now: datetime) -> bool:
         return self.answer is None and now >= self.deadline
+
+    def rearm(self, now: datetime) -> None:
+        """Give the question its whole time again from ``now``, before asking it again
+        after an interruption (a reminder spoken in between)."""
+        if self.asked is not None:
+            self.deadline = now + (self.deadline - self.asked)
 
 
 def say_choices(choices: tuple[str, ...]) -> str:

@@ -30,6 +30,7 @@ import logging
 import random
 import threading
 from collections.abc import Callable, Collection, Iterable, Mapping, Sequence
+from dataclasses import dataclass
 from datetime import datetime
 from functools import cache
 from typing import TYPE_CHECKING, Any
@@ -165,7 +166,7 @@ class PreferenceModel:
         data = [(encode(features), liking) for features, liking in rows]
         data = [(features, liking) for features, liking in data if features]
         if not data:
-            return cls((), np.zeros((len(PAIRS), 0)), np.zeros(len(PAIRS)), 0)
+            return cls.untrained()
         columns = sorted({feature_name(n, v) for features, _ in data for n, v in features.items()})
         index = {name: k for k, name in enumerate(columns)}
         matrix = np.array([vectorize(features, index) for features, _ in data])
@@ -185,6 +186,12 @@ class PreferenceModel:
                 continue
             weights[k], intercepts[k] = fit_logistic(matrix[chosen], np.array(labels))
         return cls(columns, weights, intercepts, len(data))
+
+    @classmethod
+    def untrained(cls) -> PreferenceModel:
+        """A model that learnt nothing: it predicts nothing (:meth:`win_scores` is None),
+        so the chooser's beliefs start flat, as for a user of unknown features."""
+        return cls((), np.zeros((len(PAIRS), 0)), np.zeros(len(PAIRS)), 0)
 
     @classmethod
     def from_seed(cls) -> PreferenceModel:
@@ -292,6 +299,31 @@ def posterior(prior_mean: float, score: ActivityScore | None) -> Vector:
     return result
 
 
+@dataclass(frozen=True, slots=True)
+class ChoiceDraw:
+    """The random draws behind one :meth:`ActivityChooser.choose`, for its explanation."""
+
+    activity: str
+    """What was picked."""
+    candidates: tuple[str, ...]
+    """What it was picked among (every activity but the excluded ones)."""
+    untried: tuple[str, ...]
+    """The candidates the user never did (the novelty draw's choice)."""
+    novelty_draw: float | None
+    """The novelty coin (uniform in 0..1; below :data:`NOVELTY_PROBABILITY`, a novelty
+    pick); None when every candidate had been tried and no coin was tossed."""
+    samples: Mapping[str, float] | None
+    """Thompson sampling's draw of a liking per candidate (the highest won); None for a
+    novelty pick."""
+    novelty_probability: float = NOVELTY_PROBABILITY
+    """The novelty coin's threshold."""
+
+    @property
+    def novelty(self) -> bool:
+        """The novelty coin picked: an untried activity, at random."""
+        return self.samples is None
+
+
 RETRAIN_EVERY_S = 600.0
 """Shortest time between two retrainings of the chooser's model (its clock's seconds)."""
 
@@ -329,6 +361,9 @@ class ActivityChooser:
         ) = None
         """The last profile asked about, the model that answered and its beliefs: a
         choice asks twice (to choose, then to explain), of the same frozen profile."""
+        self.last_draw: ChoiceDraw | None = None
+        """What drew the last :meth:`choose` (a new object at every choice): the
+        decision's ``why`` names it."""
 
     def session_ended(self, now: datetime) -> bool:
         """When a user leaves: retrain if none ran for :attr:`retrain_every_s`.
@@ -413,7 +448,7 @@ class ActivityChooser:
         return sorted(names, key=lambda name: -means[name])
 
     def choose(self, profile: Profile, rng: random.Random, exclude: Collection[str] = ()) -> str:
-        """One activity not in ``exclude``.
+        """One activity not in ``exclude``; what drew it is left in :attr:`last_draw`.
 
         With probability :data:`NOVELTY_PROBABILITY` one the user never did; otherwise
         the best of one draw from each belief (Thompson sampling, from the Beta of the
@@ -424,8 +459,13 @@ class ActivityChooser:
         # the tick never reads the database here.
         names = [name for name in ACTIVITIES if name not in exclude] or list(ACTIVITIES)
         untried = [name for name in names if name not in profile.scores]
-        if untried and rng.random() < NOVELTY_PROBABILITY:
-            return rng.choice(untried)
+        coin = rng.random() if untried else None  # the novelty coin, only while one is untried
+        if coin is not None and coin < NOVELTY_PROBABILITY:
+            pick = rng.choice(untried)
+            self.last_draw = ChoiceDraw(pick, tuple(names), tuple(untried), coin, None)
+            return pick
         beliefs = self.beliefs(profile)
         draws = {name: rng.betavariate(*beliefs[name]) for name in names}
-        return max(names, key=lambda name: draws[name])
+        pick = max(names, key=lambda name: draws[name])
+        self.last_draw = ChoiceDraw(pick, tuple(names), tuple(untried), coin, draws)
+        return pick

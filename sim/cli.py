@@ -1,4 +1,5 @@
-"""Command line of the sim package, mounted by dms.cli as ``dms sim`` and ``dms record``."""
+"""Command line of the sim package, mounted by dms.cli as ``dms sim`` (``dms record`` is
+:mod:`sim.record_cli`)."""
 
 from __future__ import annotations
 
@@ -17,9 +18,7 @@ import typer
 from sim.errors import ExpectationFailed, SimError
 
 if TYPE_CHECKING:
-    from dms.bus import ZenohClient
     from dms.config import Settings
-    from sim.recording import McapRecorder
 
 app = typer.Typer(no_args_is_help=True)
 
@@ -118,6 +117,40 @@ RulesOption = Annotated[
 ]
 
 
+ChooserOption = Literal["dms", "random", "fixed", "least_liked", "oracle"]
+PopulationOption = Literal["paper", "personas", "heldout"]
+
+
+def _seeds(text: str | None) -> list[int] | None:
+    """``0-99`` or ``0,3,7`` as a list of seeds (None: not given)."""
+    if text is None:
+        return None
+    try:
+        if "-" in text:
+            first, last = text.split("-", 1)
+            seeds = list(range(int(first), int(last) + 1))
+        else:
+            seeds = [int(part) for part in text.split(",")]
+    except ValueError:
+        raise typer.BadParameter(
+            "give FIRST-LAST or a comma-separated list", param_hint="--seeds"
+        ) from None
+    if not seeds:
+        raise typer.BadParameter("no seed in the range", param_hint="--seeds")
+    return seeds
+
+
+SeedsOption = Annotated[
+    str | None,
+    typer.Option(
+        "--seeds",
+        help="Run one study per seed (FIRST-LAST or a list) and report each metric's mean "
+        "with its 95 % interval; the reported figures use 0-99.",
+        show_default=False,
+    ),
+]
+
+
 @app.command("study")
 def study_command(
     sessions: Annotated[int, typer.Option(min=1, max=10000, help="Participants.")] = 30,
@@ -127,13 +160,21 @@ def study_command(
         typer.Option(help="True proactivity of every participant."),
     ] = "moderate",
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+    seeds: SeedsOption = None,
     repeat: Annotated[
         int, typer.Option(min=1, max=100, help="Visits of each participant (adaptation).")
     ] = 1,
     population: Annotated[
-        Literal["paper", "personas"],
-        typer.Option(help="paper (adults like the seed's) or personas (the shipped ones)."),
+        PopulationOption,
+        typer.Option(
+            help="paper (adults like the paper's, tastes from the learner's data's world), "
+            "heldout (tastes of another structure) or personas (the shipped ones)."
+        ),
     ] = "paper",
+    chooser: Annotated[
+        ChooserOption,
+        typer.Option(help="What picks the robot's own choices: the decision system or a baseline."),
+    ] = "dms",
     config: ConfigOption = None,
     rules: RulesOption = None,
     out: Annotated[
@@ -141,13 +182,41 @@ def study_command(
         typer.Option("--out", help="Folder for sessions.csv, decisions.csv and table4.png."),
     ] = None,
     as_json: Annotated[
-        bool, typer.Option("--json", help="Print JSON (CONTRACT.md's keys).")
+        bool, typer.Option("--json", help="Print JSON (docs/contract.md's keys).")
     ] = False,
 ) -> None:
-    """The seed's first experiment with simulated participants; prints its Table 4."""
+    """The paper's first experiment with simulated participants; prints its Table 4."""
     from sim.study import run_study, study_settings
 
     settings, raw = _design(config, rules)
+    chosen = _seeds(seeds)
+    if chosen is not None:
+        from sim.prediction import run_seeds, summary, table
+
+        with _progress(len(chosen), "studies") as told:
+            results = run_seeds(
+                chosen,
+                sessions,
+                minutes,
+                proactivity,
+                study_settings(settings, raw),
+                chooser=chooser,
+                population=population,
+                progress=told,
+            )
+        estimates = summary(results)
+        if as_json:
+            _print_json(
+                {
+                    "seeds": chosen,
+                    "chooser": chooser,
+                    "population": population,
+                    "metrics": {key: e.to_json() for key, e in estimates.items()},
+                }
+            )
+        else:
+            typer.echo(table(estimates, chosen))
+        return
     with _progress(sessions * repeat, "sessions") as told:
         result = run_study(
             sessions,
@@ -159,6 +228,7 @@ def study_command(
             repeat=repeat,
             population=population,
             record_decisions=out is not None,
+            chooser=chooser,
         )
     if out is not None:
         from sim.export import write_all
@@ -173,23 +243,35 @@ def study_command(
 
 @app.command("compare")
 def compare_command(
-    design_a: Annotated[Path, typer.Argument(help="Design A: a dms TOML configuration.")],
-    design_b: Annotated[Path, typer.Argument(help="Design B: a dms TOML configuration.")],
+    design_a: Annotated[
+        Path | None, typer.Argument(help="Design A: a dms TOML configuration (default: none).")
+    ] = None,
+    design_b: Annotated[
+        Path | None, typer.Argument(help="Design B: a dms TOML configuration (default: A's).")
+    ] = None,
     rules_a: Annotated[Path | None, typer.Option("--rules-a", help="Rules file of A.")] = None,
     rules_b: Annotated[Path | None, typer.Option("--rules-b", help="Rules file of B.")] = None,
+    chooser_a: Annotated[ChooserOption, typer.Option("--chooser-a", help="A's chooser.")] = "dms",
+    chooser_b: Annotated[ChooserOption, typer.Option("--chooser-b", help="B's chooser.")] = "dms",
     sessions: Annotated[int, typer.Option(min=2, max=10000, help="Participants.")] = 30,
     minutes: Annotated[float, typer.Option(min=0.5, max=24 * 60, help="Session length.")] = 30.0,
     seed: Annotated[int, typer.Option(help="Random seed (the same for both).")] = 0,
+    seeds: SeedsOption = None,
+    population: Annotated[
+        PopulationOption, typer.Option(help="The participants (as dms sim study's).")
+    ] = "paper",
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
 ) -> None:
-    """Run two designs on the same participants; per metric, both means and the paired
-    difference (B - A) with a bootstrap 95 % interval."""
+    """Run two designs or choosers on the same participants; per metric, both means and
+    the paired difference (B - A) with a bootstrap 95 % interval."""
     from sim.compare import compare, table, to_json
     from sim.study import study_settings
 
     settings_a, raw_a = _design(design_a, rules_a)
-    settings_b, raw_b = _design(design_b, rules_b)
-    with _progress(2 * sessions, "sessions (A, then B)") as told:
+    settings_b, raw_b = _design(design_b if design_b is not None else design_a, rules_b)
+    chosen = _seeds(seeds)
+    runs = len(chosen) if chosen is not None else 1
+    with _progress(2 * sessions * runs, "sessions (A, then B)") as told:
         done = {"A": 0, "B": 0}
 
         def progress(label: str, count: int) -> None:
@@ -203,11 +285,59 @@ def compare_command(
             minutes,
             seed,
             progress=progress,
+            chooser_a=chooser_a,
+            chooser_b=chooser_b,
+            seeds=chosen,
+            population=population,
         )
     if as_json:
         _print_json(to_json(result))
     else:
         typer.echo(table(result))
+
+
+@app.command("sensitivity")
+def sensitivity_command(
+    sessions: Annotated[int, typer.Option(min=2, max=10000, help="Participants.")] = 30,
+    minutes: Annotated[float, typer.Option(min=0.5, max=24 * 60, help="Session length.")] = 30.0,
+    seeds: SeedsOption = "0-2",
+    change: Annotated[
+        float, typer.Option(min=0.01, max=0.99, help="Move each input by this share.")
+    ] = 0.5,
+    only: Annotated[
+        list[str] | None, typer.Option("--only", help="Sweep only this input (repeatable).")
+    ] = None,
+    out: Annotated[
+        Path, typer.Option("--out", help="Folder for sensitivity.csv and sensitivity.png.")
+    ] = Path("sensitivity"),
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+) -> None:
+    """Move each participant input of sim/calibration.py by ±50 % and show which Table 4
+    metric moves with it (a CSV and a tornado chart)."""
+    from sim.calibration import PARTICIPANT_INPUTS
+    from sim.sensitivity import sweep, write_csv, write_tornado
+
+    chosen = _seeds(seeds) or [0]
+    names = list(only) if only else list(PARTICIPANT_INPUTS)
+    unknown = [name for name in names if name not in PARTICIPANT_INPUTS]
+    if unknown:
+        raise typer.BadParameter(
+            f"{', '.join(unknown)}: not a participant input ({', '.join(PARTICIPANT_INPUTS)})",
+            param_hint="--only",
+        )
+    with _progress(len(chosen) * (1 + 2 * len(names)), "studies") as told:
+        result = sweep(names, chosen, sessions, minutes, change, progress=told)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = [
+        write_csv(out / "sensitivity.csv", result),
+        write_tornado(out / "sensitivity.png", result),
+    ]
+    for path in paths:
+        print(f"dms: wrote {path}", file=sys.stderr)
+    if as_json:
+        _print_json(result.to_json())
+    else:
+        typer.echo(result.text())
 
 
 @app.command("longterm")
@@ -222,7 +352,7 @@ def longterm_command(
     config: ConfigOption = None,
     rules: RulesOption = None,
     as_json: Annotated[
-        bool, typer.Option("--json", help="Print JSON (CONTRACT.md's keys).")
+        bool, typer.Option("--json", help="Print JSON (docs/contract.md's keys).")
     ] = False,
 ) -> None:
     """Weeks of robot life with users visiting; plots drives, wellbeing and activities."""
@@ -335,196 +465,4 @@ def personas_command() -> None:
     print_table(None, ["name", "proactivity", "description"], rows)
 
 
-record_app = typer.Typer()
-
-
-@record_app.callback(invoke_without_command=True)
-def record_command(
-    ctx: typer.Context,
-    out: Annotated[
-        Path | None, typer.Option("--out", help="The MCAP file to write.", show_default=False)
-    ] = None,
-    robot_id: Annotated[
-        str, typer.Option("--robot-id", envvar="DMS_ROBOT_ID", help="Robot id.")
-    ] = "mini",
-    connect: Annotated[
-        list[str] | None,
-        typer.Option(
-            help=f"Zenoh endpoint to connect to (default {DEFAULT_ENDPOINT}).", show_default=False
-        ),
-    ] = None,
-    zenoh_config: Annotated[
-        Path | None,
-        typer.Option("--zenoh-config", help="Zenoh JSON5 configuration file.", show_default=False),
-    ] = None,
-    duration: Annotated[
-        float | None,
-        typer.Option(
-            min=0.0, help="Stop after S seconds (else on SIGINT/SIGTERM).", show_default=False
-        ),
-    ] = None,
-) -> None:
-    """Record every message under robots/<id>/** into MCAP; dms record info FILE describes one.
-
-    JSON with its schemas (for Foxglove) in zstd chunks, with the daemon's seed, settings
-    and files, so that dms sim replay FILE needs no flags. Exit 1 when nothing was recorded.
-    """
-    if ctx.invoked_subcommand is not None:
-        return
-    import time
-
-    from dms.bus import ZenohClient, make_config
-    from dms.kernel.keys import ROBOT_ID_RE
-    from sim.recording import McapRecorder, record_until
-
-    if out is None:
-        raise typer.BadParameter(
-            "give the file to write (or: dms record info FILE)", param_hint="--out"
-        )
-    if not ROBOT_ID_RE.match(robot_id):
-        raise SimError(f"--robot-id: {robot_id!r} does not match [a-z0-9_-]+")
-    endpoints = list(connect or ([] if zenoh_config else [DEFAULT_ENDPOINT]))
-    config = make_config(connect=endpoints, config_file=zenoh_config)  # a bad file: one line
-    recorder = McapRecorder(out, robot_id)  # a bad --out fails before the network is touched
-    started = time.monotonic()
-    try:
-        stop = _stop_on_signals()
-        with ZenohClient(robot_id, config) as client:
-            print(f"dms: recording robots/{robot_id}/** into {out}; Ctrl-C stops", file=sys.stderr)
-            asked = threading.Event()
-            fetcher = threading.Thread(
-                target=_store_config, args=(client, recorder, stop, asked), daemon=True
-            )
-
-            def subscribe(key_expr: str, handler: Callable[[str, bytes], None]) -> None:
-                client.subscribe_raw(key_expr, handler)
-                fetcher.start()  # asked after subscribing: its answer comes on a live link
-
-            stats = record_until(recorder, subscribe, time.time_ns, stop, duration)
-            asked.set()  # the recording is closed: stop asking
-    finally:
-        recorder.close()
-    where = ", ".join(endpoints) or f"the endpoints of {zenoh_config}"
-    if stats.messages == 0:
-        out.unlink(missing_ok=True)
-        raise SimError(
-            f"recorded nothing from robots/{robot_id}/** in {time.monotonic() - started:.1f} s"
-            f" (is its daemon running and reachable at {where}?); {out} not kept"
-        )
-    by_key = ", ".join(f"{key} {count}" for key, count in sorted(stats.by_key.items()))
-    stored = "" if stats.configured else "; the daemon's configuration was not stored"
-    print(f"dms: {stats.messages} messages recorded ({by_key}){stored}", file=sys.stderr)
-
-
-def _store_config(
-    client: ZenohClient, recorder: McapRecorder, stop: threading.Event, done: threading.Event
-) -> None:
-    """Once the daemon is alive, ask it for ``dms/config`` and store its answer (the seed,
-    settings and files a replay needs); a daemon that does not answer leaves it out."""
-    import time
-
-    from dms.daemon import CONFIG_KEY
-    from dms.kernel.keys import ALIVE_DMS
-
-    while not (stop.is_set() or done.is_set()):
-        if not client.wait_alive(ALIVE_DMS, 0.5):
-            continue
-        try:
-            replies = client.query(CONFIG_KEY, timeout_s=10.0)
-        except Exception:  # the session closed under the query: the recording has ended
-            return
-        for ok, body in replies:
-            if ok and isinstance(body, dict) and recorder.add_config(body, time.time_ns()):
-                files = body.get("files") or []
-                print(
-                    f"dms: stored robot {recorder.robot_id}'s configuration for replay "
-                    f"(seed {body.get('seed')}, {len(files)} files)",
-                    file=sys.stderr,
-                    flush=True,
-                )
-                return
-        return
-
-
-@record_app.command("info")
-def record_info_command(
-    file: Annotated[Path, typer.Argument(help="An MCAP file written by dms record.")],
-    as_json: Annotated[bool, typer.Option("--json", help="Print the description as JSON.")] = False,
-) -> None:
-    """Describe a recording, as ros2 bag info does.
-
-    Its duration, messages per topic, chunks and their compression, and the daemon's
-    configuration stored for replay.
-    """
-    from sim.recording import recording_info
-
-    info = recording_info(file)
-    if as_json:
-        _print_json(info)
-        return
-    typer.echo(_info_text(info))
-
-
-def _info_text(info: dict[str, Any]) -> str:
-    from datetime import UTC, datetime
-
-    def when(ns: int | None) -> str:
-        if ns is None:
-            return "-"
-        return datetime.fromtimestamp(ns / 1e9, UTC).isoformat(timespec="milliseconds")
-
-    start, end = info.get("start_ns"), info.get("end_ns")
-    duration = (end - start) / 1e9 if start is not None and end is not None else 0.0
-    lines = [
-        f"File:          {info['file']}",
-        f"Size:          {_size(info['bytes'])}",
-        f"Duration:      {duration:.3f} s",
-        f"Start:         {when(start)}",
-        f"End:           {when(end)}",
-        f"Messages:      {info['messages']}",
-    ]
-    if info.get("complete"):
-        ratio = info["uncompressed_bytes"] / max(1, info["compressed_bytes"])
-        lines.append(
-            f"Chunks:        {info['chunks']} ({', '.join(info['compression']) or 'none'}; "
-            f"{_size(info['uncompressed_bytes'])} -> {_size(info['compressed_bytes'])}, "
-            f"{ratio:.1f}x)"
-        )
-    else:
-        lines.append(f"Truncated:     {info.get('truncated')}")
-    config = info.get("config")
-    if config is None:
-        lines.append("Configuration: not stored (dms sim replay needs --config and --seed)")
-    else:
-        versions = ", ".join(f"{k} {v}" for k, v in config["versions"].items())
-        lines.append(f"Robot:         {config['robot_id']}")
-        lines.append(f"Seed:          {config['seed'] if config['seed'] is not None else 'none'}")
-        lines.append(f"Versions:      {versions}")
-        files = config["files"]
-        groups: dict[str, int] = {}
-        for name in files:
-            groups[name.split("/", 1)[0]] = groups.get(name.split("/", 1)[0], 0) + 1
-        rules = [name.split("/")[-1] for name in files if name.startswith("rules/")]
-        shown = ", ".join(f"{group} {count}" for group, count in sorted(groups.items()))
-        lines.append(f"Files stored:  {len(files)} ({shown or 'none'})")
-        if rules:
-            lines.append(f"Rules:         {', '.join(rules)}")
-    topics = info["topics"]
-    width = max((len(t["topic"]) for t in topics), default=0)
-    lines.append("Topics:" if topics else "Topics:        none")
-    for topic in topics:
-        schema = topic["schema"] or "-"
-        lines.append(f"  {topic['topic']:<{width}}  {topic['count']:>7}  {schema}")
-    return "\n".join(lines)
-
-
-def _size(count: int) -> str:
-    value = float(count)
-    for unit in ("B", "KiB", "MiB", "GiB"):
-        if value < 1024 or unit == "GiB":
-            return f"{value:.0f} {unit}" if unit == "B" else f"{value:.1f} {unit}"
-        value /= 1024
-    return f"{count} B"
-
-
-__all__ = ["app", "record_app", "record_command"]
+__all__ = ["app"]

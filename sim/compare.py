@@ -1,70 +1,30 @@
-"""``dms sim compare``: two designs on the same participants, metric by metric.
+"""``dms sim compare``: two designs or two choosers on the same participants, metric by metric.
 
-A design is a dms configuration (TOML) and optionally a rules file. Both run the study
-with the same seed, so session ``i`` of each has the same participant (the population
-is drawn from its own generator, :func:`sim.study.participants`); the difference of a
-metric is taken per session and its mean gets a bootstrap 95 % interval
-(``scipy.stats.bootstrap``, BCa, resampling the paired differences). An interval that
-excludes 0 says the designs differ on that metric beyond the run's own noise.
+A design is a dms configuration (TOML) and optionally a rules file; a chooser is what
+picks the robot's own choices (:mod:`sim.baselines`: the decision system's ``dms`` or a
+baseline). Both sides run the study with the same seeds, so session ``i`` of each has
+the same participant (the population is drawn from its own generator,
+:func:`sim.study.participants`); the difference of a metric is taken per session pair,
+and its mean gets a bootstrap 95 % interval (``scipy.stats.bootstrap``, BCa): over the
+session pairs with one seed, over the seeds' mean differences with several. An interval
+that excludes 0 says the two sides differ on that metric beyond the run's own noise.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from dms.config import Settings
-from sim.study import LABELS, METRICS, ProactivityLevel, StudyResult, run_study
+from sim.baselines import ChooserName
+from sim.population import Population
+from sim.prediction import Difference, bootstrap_ci, paired, run_seeds
+from sim.study import ProactivityLevel
+from sim.table4 import LABELS
 
-BOOTSTRAP_RESAMPLES = 2000
-
-
-@dataclass(frozen=True)
-class MetricComparison:
-    a: float
-    b: float
-    diff: float
-    """Mean of the paired differences b - a."""
-    ci: tuple[float, float]
-
-
-def _paired(a: StudyResult, b: StudyResult, key: str) -> tuple[list[float], list[float]]:
-    xs, ys = [], []
-    for sa, sb in zip(a.metric_values()[key], b.metric_values()[key], strict=True):
-        if sa is not None and sb is not None:
-            xs.append(sa)
-            ys.append(sb)
-    return xs, ys
-
-
-def bootstrap_ci(diffs: list[float], seed: int) -> tuple[float, float]:
-    """95 % bootstrap interval of the mean of ``diffs`` (BCa; percentile when BCa cannot
-    be computed, e.g. every difference equal)."""
-    import numpy as np
-    from scipy.stats import bootstrap
-
-    if not diffs:
-        return (math.nan, math.nan)
-    data = np.asarray(diffs, dtype=float)
-    if np.all(data == data[0]):
-        return (float(data[0]), float(data[0]))
-    rng = np.random.default_rng(seed)
-    result = bootstrap(
-        (data,), np.mean, n_resamples=BOOTSTRAP_RESAMPLES, confidence_level=0.95, rng=rng
-    )
-    low, high = result.confidence_interval
-    if not (math.isfinite(low) and math.isfinite(high)):
-        result = bootstrap(
-            (data,),
-            np.mean,
-            n_resamples=BOOTSTRAP_RESAMPLES,
-            method="percentile",
-            rng=np.random.default_rng(seed),
-        )
-        low, high = result.confidence_interval
-    return (float(low), float(high))
+MetricComparison = Difference
+__all__ = ["MetricComparison", "bootstrap_ci", "compare", "table", "to_json"]
 
 
 def compare(
@@ -75,25 +35,36 @@ def compare(
     seed: int = 0,
     proactivity: ProactivityLevel = "moderate",
     progress: Callable[[str, int], None] | None = None,
+    *,
+    chooser_a: ChooserName = "dms",
+    chooser_b: ChooserName = "dms",
+    seeds: Sequence[int] | None = None,
+    population: Population = "paper",
 ) -> dict[str, MetricComparison]:
-    """Run both designs on the same seed and participants; compare each Table 4 metric."""
+    """Run both sides on the same seeds and participants; compare each metric (Table 4's
+    and what the participants got: the true liking of the robot's choices, cancels per
+    robot choice, time in liked activities)."""
+    chosen = list(seeds) if seeds is not None else [seed]
     results = []
-    for label, settings in (("A", a), ("B", b)):
+    for label, settings, chooser in (("A", a, chooser_a), ("B", b, chooser_b)):
 
         def told(done: int, label: str = label) -> None:
             if progress is not None:
-                progress(label, done)
+                progress(label, done * sessions)
 
-        results.append(run_study(sessions, minutes, proactivity, seed, settings, told))
-    out: dict[str, MetricComparison] = {}
-    for key in METRICS:
-        xs, ys = _paired(results[0], results[1], key)
-        diffs = [y - x for x, y in zip(xs, ys, strict=True)]
-        mean_a = sum(xs) / len(xs) if xs else math.nan
-        mean_b = sum(ys) / len(ys) if ys else math.nan
-        diff = sum(diffs) / len(diffs) if diffs else math.nan
-        out[key] = MetricComparison(mean_a, mean_b, diff, bootstrap_ci(diffs, seed))
-    return out
+        results.append(
+            run_seeds(
+                chosen,
+                sessions,
+                minutes,
+                proactivity,
+                settings,
+                chooser=chooser,
+                population=population,
+                progress=told,
+            )
+        )
+    return paired(results[0], results[1])
 
 
 def _number(value: float) -> float | None:
@@ -125,10 +96,13 @@ def table(comparison: dict[str, MetricComparison]) -> str:
         "-" * 84,
     ]
     for key, c in comparison.items():
+        if not math.isfinite(c.diff):
+            lines.append(f"{LABELS[key]:<38} {'(no session pair has it)':>29}")
+            continue
         mark = "" if c.ci[0] <= 0.0 <= c.ci[1] else "  *"
         lines.append(
             f"{LABELS[key]:<38} {c.a:9.2f} {c.b:9.2f} {c.diff:9.2f}  "
             f"[{c.ci[0]:.2f}, {c.ci[1]:.2f}]{mark}"
         )
-    lines.append("* the interval excludes 0: the designs differ on this metric")
+    lines.append("* the interval excludes 0: the two sides differ on this metric")
     return "\n".join(lines)

@@ -76,7 +76,7 @@ class SpeechHabits(_Spec):
     """Chance of answering on the touch screen when choices are shown."""
     menu_delay_s: Span | None = None
     """Time to look through a menu of activities and pick one (None: ``answer_delay_s``).
-    The seed's participants browsed touch-screen menus they had never seen."""
+    The paper's participants browsed touch-screen menus they had never seen."""
     rating_delay_s: Span | None = None
     """Time to rate an activity from 1 to 5 (None: ``answer_delay_s``)."""
 

@@ -374,11 +374,11 @@ class SimulatedUser:
 
     def _pick(self, choices: Sequence[str]) -> str:
         """A menu: the best-liked activity among them not done yet this visit (people
-        try different ones: the seed's participants did 4-6 different activities), or
+        try different ones: the paper's participants did 4-6 different activities), or
         "you choose" (as often as the persona leaves the initiative to the robot); else
         (a quiz, a yes/no question) any choice."""
         named = [(name, choice) for choice in choices if (name := _choice_activity(choice))]
-        # They came for the entertainment activities (the seed's menus, its Fig. 5).
+        # They came for the entertainment activities (the paper's menus, its Fig. 5).
         named = [pair for pair in named if pair[0] in ENTERTAINMENT_ACTIVITIES] or named
         fresh = [(name, choice) for name, choice in named if name not in self.done]
         scored = [

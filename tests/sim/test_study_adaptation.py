@@ -1,10 +1,10 @@
-"""The robot learns what each returning participant likes (issue 12, item 6).
+"""The robot learns what each returning participant likes.
 
 With ``--repeat`` every participant comes back; after each visit the daemon's predicted
 ranking of the eight entertainment activities (its chooser's expected liking) is
-compared with the participant's hidden true ranking by Kendall's tau. The daemon is
-told nothing of the truth: it learns from the participant's features (the opening
-questions), ratings, completions and cancellations.
+compared with the participant's hidden true ranking by Kendall's tau, beside two
+rankings that learn nothing from the visits (the training data's mean ranking, the
+learner's prediction from features alone). The daemon is told nothing of the truth.
 """
 
 from __future__ import annotations
@@ -21,11 +21,14 @@ def test_kendall_tau_compares_the_same_activities_by_position() -> None:
     assert kendall_tau(["b", "a", "c", "d"], truth) == pytest.approx(4 / 6)
 
 
-def test_tau_reaches_0_7_by_the_fifth_visit_and_grows() -> None:
-    # 20 participants: a participant's tau spreads by about 0.15, so fewer would test the
-    # luck of the draw more than the learning (the figure in docs/adaptation.png has 30).
-    result = run_study(20, 30.0, "moderate", 0, study_settings(), repeat=5)
-    taus = result.adaptation()["kendall_tau_by_session"]
-    assert len(taus) == 5
-    assert taus[4] >= 0.7, taus
-    assert taus[4] > taus[0], taus  # the visits teach it something the features did not
+def test_visits_teach_the_robot_more_than_the_features_on_held_out_participants() -> None:
+    # Held-out tastes: the features say nothing of them, so what the robot gets right
+    # after the visits it learnt from them. 10 participants, 3 short visits: the
+    # machinery, not the size of the effect (docs/benchmarks.md has 30 x 10 visits).
+    result = run_study(10, 20.0, "moderate", 0, study_settings(), repeat=3, population="heldout")
+    by_visit = result.adaptation()
+    taus = by_visit["kendall_tau_by_session"]
+    features = by_visit["tau_features_by_session"]
+    assert len(taus) == 3
+    assert taus[2] > taus[0], taus
+    assert taus[2] > features[2], (taus, features)

@@ -1,39 +1,50 @@
-"""The simulated study reproduces the seed's Table 4 from its inputs (issue 12, item 4).
+"""The simulated study measures the paper's Table 4 and reports it beside the paper's.
 
-The default study (participants like the seed's, 30 minutes each, moderate proactivity)
-must put every one of the eight metrics within 20 % of the paper's mean and the failures
-in the paper's order of magnitude. The inputs are calibrated (content lengths, the
-participants' pace and patience, the robot's launch delay, the session's protocol: its
-last activity is the last that fits before the survey); the decision logic is the
-daemon's own and knows nothing of the study (test_study_guard.py).
-
-The default run (seed 0) is the issue's acceptance figure, so it is held to 20 % on its
-own; the same bound on seeds 0 and 1 pooled says the means are not a lucky seed's.
-Cancels, 0.53 a session, are whole numbers per session, so their 30-session mean has a
-standard error of at least 0.09 (every session 0 or 1 cancel), about 0.13 as simulated
-(a quarter of the mean) whatever the inputs: on seed 0 they are 19 % over, and over
-seeds 0 to 9 single seeds range from -62 % to +19 % about a mean 7 % under the paper's.
+The study predicts: its inputs come from sim/calibration.py (test_study_calibration.py),
+never from Table 4's metrics, so nothing here asserts that a metric lands near the
+paper's. What is checked is the machinery: every metric is measured, the inputs that
+fix a metric give it (4 questions by the protocol, the launch delay in the loading
+time), the session follows the protocol (activities until the survey is due, the last
+one completed), and the multi-seed report carries each metric's interval beside the
+paper's value and says which rows are inputs. The figures are in docs/benchmarks.md.
 """
 
 from __future__ import annotations
 
-from sim.study import PAPER, StudyResult, run_study, study_settings
+from sim.calibration import DEFAULT
+from sim.prediction import role, summary, table
+from sim.study import run_study, study_settings
+from sim.table4 import METRICS, PAPER
 
 
-def test_the_default_study_lands_within_20_percent_of_every_table4_mean() -> None:
-    runs = [run_study(30, 30.0, "moderate", seed, study_settings()) for seed in (0, 1)]
-    pooled = StudyResult(
-        [s for run in runs for s in run.sessions], 0.0, 30.0, "moderate", 0
-    ).to_json()
-    for name, figures in (("seed 0", runs[0].to_json()), ("seeds 0 and 1", pooled)):
-        off = {
-            key: round(figures[key] / mean - 1.0, 3)
-            for key, (mean, _sd) in PAPER.items()
-            if abs(figures[key] / mean - 1.0) > 0.20
-        }
-        assert not off, f"{name}: metrics more than 20 % from the paper's mean: {off}"
-    for run in runs:
-        failures = run.to_json()["failures"]
-        assert failures["speech_recognition_errors"] <= 15  # the paper: 5 in 30 sessions
-        assert failures["user_not_answering"] <= 3  # the paper: 0
-        assert failures["activity_not_loaded"] == 0  # every shipped behavior loads
+def test_a_short_study_measures_every_metric_and_reports_the_paper_beside_it() -> None:
+    result = run_study(4, 30.0, "moderate", 0, study_settings())
+    figures = result.to_json()
+    for key in METRICS:
+        assert figures[key] > 0.0 or key == "cancels_per_session", key
+    assert figures["questions_per_session"] == DEFAULT.number("session_questions")
+    low, high = DEFAULT.span("launch_delay_s")
+    assert low <= figures["activity_load_time_s"] <= high + 1.0  # plus the feedback round
+    assert figures["failures"]["activity_not_loaded"] == 0  # every shipped behavior loads
+    for session in result.sessions:
+        # Activities go on until the survey is due (27 of 30 minutes): the last one is
+        # under way then, so they fill the time the protocol leaves.
+        busy = sum(session.activity_times) + sum(session.change_times)
+        assert busy > 20 * 60, busy
+    text = result.table()
+    assert "255.91 (62.89)" in text and "Paper" in text
+
+
+def test_the_multi_seed_report_gives_intervals_and_says_what_is_an_input() -> None:
+    results = [run_study(2, 10.0, "moderate", seed, study_settings()) for seed in (0, 1)]
+    estimates = summary(results)
+    for key in METRICS:
+        e = estimates[key]
+        assert e.ci[0] <= e.mean <= e.ci[1]
+        assert e.paper == PAPER[key][0]
+    assert role("questions_per_session") == "input"
+    assert role("activity_load_time_s") == "input"
+    assert role("cancels_per_session") == "prediction"
+    assert role("speech_recognition_errors") == "input"
+    text = table(estimates, [0, 1])
+    assert "95 % CI" in text and "prediction" in text

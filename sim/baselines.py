@@ -1,0 +1,77 @@
+"""Baseline activity choosers for the study, injected in place of the daemon's.
+
+``dms sim study --chooser`` replaces what the robot picks when it chooses on its own
+(the controller asks its :class:`memory.ActivityChooser` ``choose``): the decision
+system's learned choice (``dms``), or a baseline that shows what the learning adds:
+
+- ``random``: any activity, uniformly;
+- ``fixed``: the activities in a fixed cycle, the same for everyone;
+- ``least_liked``: the participant's true worst (a floor: it reads the hidden truth);
+- ``oracle``: the participant's true favourite (a ceiling: it reads the hidden truth).
+
+Everything else (the daemon's rankings, learning from ratings, who chooses) is the
+daemon's own: :class:`BaselineChooser` delegates every other call to the real chooser.
+The controller is not touched; :func:`install` swaps the chooser the controller's
+dependencies hold, as the daemon's assembly would wire another one.
+"""
+
+from __future__ import annotations
+
+import random
+from collections.abc import Callable, Collection
+from typing import TYPE_CHECKING, Literal
+
+from dms.kernel.activity_names import ENTERTAINMENT_ACTIVITIES
+
+if TYPE_CHECKING:
+    from memory import ActivityChooser
+    from memory.profile import Profile
+    from sim.harness import Simulation
+
+ChooserName = Literal["dms", "random", "fixed", "least_liked", "oracle"]
+CHOOSERS: tuple[ChooserName, ...] = ("dms", "random", "fixed", "least_liked", "oracle")
+BASELINES: tuple[ChooserName, ...] = CHOOSERS[1:]
+Truth = Callable[[str], dict[str, float] | None]
+"""A participant's hidden liking of each activity, by user id (None: unknown)."""
+
+
+class BaselineChooser:
+    """The daemon's chooser with ``choose`` replaced by a baseline's pick."""
+
+    def __init__(self, inner: ActivityChooser, name: ChooserName, truth: Truth, seed: int) -> None:
+        self.inner = inner
+        self.name = name
+        self.truth = truth
+        self.rng = random.Random(f"chooser/{name}/{seed}")
+        """The baseline's own draws: the controller's random stream is left as it is."""
+        self._turn = 0
+
+    def __getattr__(self, attribute: str) -> object:
+        return getattr(self.inner, attribute)
+
+    def choose(self, profile: Profile, rng: random.Random, exclude: Collection[str] = ()) -> str:
+        """One entertainment activity not in ``exclude``, by the baseline's rule."""
+        names = [n for n in ENTERTAINMENT_ACTIVITIES if n not in exclude] or list(
+            ENTERTAINMENT_ACTIVITIES
+        )
+        if self.name == "random":
+            return self.rng.choice(names)
+        if self.name == "fixed":
+            while True:
+                pick = ENTERTAINMENT_ACTIVITIES[self._turn % len(ENTERTAINMENT_ACTIVITIES)]
+                self._turn += 1
+                if pick in names:
+                    return pick
+        liking = self.truth(profile.user_id) or {}
+        best = sorted(names, key=lambda n: (liking.get(n, 0.5), self.rng.random()))
+        return best[0] if self.name == "least_liked" else best[-1]
+
+
+def install(sim: Simulation, name: ChooserName, truth: Truth, seed: int) -> None:
+    """Make ``sim``'s controller choose with ``name`` (``dms``: leave the daemon's)."""
+    if name == "dms":
+        return
+    deps = sim.controller.deps
+    if deps.chooser is None:
+        raise ValueError("a baseline chooser needs the daemon's memory")
+    deps.chooser = BaselineChooser(deps.chooser, name, truth, seed)  # type: ignore[assignment]

@@ -1,0 +1,29 @@
+"""``dms sim sensitivity``: an input moves the metric it drives."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from dms.cli import main
+from sim.sensitivity import sweep
+
+
+def test_patience_moves_cancels_and_menu_time_moves_the_change_time() -> None:
+    result = sweep(["bored_below", "menu_delay_s"], [0], sessions=4, minutes=12.0)
+    # Stopping activities up to a higher liking cancels more of them.
+    assert result.effect("bored_below", "high", "cancels_per_session") > result.effect(
+        "bored_below", "low", "cancels_per_session"
+    )
+    # Slower menus lengthen the time between activities.
+    assert result.effect("menu_delay_s", "high", "change_time_s") > 0.0
+    assert result.effect("menu_delay_s", "low", "change_time_s") < 0.0
+
+
+def test_the_command_writes_a_csv_and_a_tornado_chart(tmp_path: Path) -> None:
+    args = ["sim", "sensitivity", "--sessions", "2", "--minutes", "6", "--seeds", "0"]
+    args += ["--only", "screen_rate", "--out", str(tmp_path)]
+    assert main(args) == 0
+    rows = (tmp_path / "sensitivity.csv").read_text().splitlines()
+    assert rows[0].startswith("input,direction")
+    assert len(rows) > 2
+    assert (tmp_path / "sensitivity.png").stat().st_size > 1000
