@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import difflib
 import json
 import shutil
 import subprocess
@@ -16,8 +17,14 @@ import typer
 
 from activities.diagram import to_dot, to_mermaid
 from activities.errors import BehaviorError
-from activities.library import BehaviorLibrary, decision_problems
-from activities.spec import schema_text
+from activities.library import (
+    BEHAVIORS_DIR,
+    BehaviorLibrary,
+    OutcomeCheck,
+    decision_problems,
+    load_specs,
+)
+from activities.schema import schema_text
 from activities.stepper import BehaviorRun, Step, parse_input
 from dms.kernel.ports import RobotPort
 
@@ -65,9 +72,32 @@ def _print(step: Step) -> None:
         typer.echo(line)
 
 
+def behavior_file(given: Path) -> Path:
+    """A behavior file given by its path, or by its name (``quiz``) in the shipped library.
+
+    Raises:
+        BehaviorError: a bare name that is no file and no shipped behavior; the message
+            says which names there are.
+    """
+    if given.exists() or given.suffix or len(given.parts) != 1:
+        return given
+    name = str(given)
+    known = sorted(path.stem for path in BEHAVIORS_DIR.glob("*.yaml"))
+    if name in known:
+        return BEHAVIORS_DIR / f"{name}.yaml"
+    close = difflib.get_close_matches(name, known, n=1)
+    hint = f"did you mean {close[0]!r}? " if close else ""
+    raise BehaviorError(
+        f"{name}: no such file, and no behavior of that name ({hint}behaviors: {', '.join(known)})"
+    )
+
+
 @app.command()
 def check(
-    files: Annotated[list[Path], typer.Argument(help="Behavior files to check.")],
+    files: Annotated[
+        list[Path] | None,
+        typer.Argument(help="Behavior files, names or folders (default: the shipped behaviors)."),
+    ] = None,
     rules: Annotated[
         list[Path] | None,
         typer.Option(help="Rules files: decide states must declare every activation."),
@@ -75,8 +105,9 @@ def check(
 ) -> None:
     """Check behavior files; one FILE:LINE: state PATH: message line per problem.
 
-    With ``--rules``, a decide state whose DMSL component may activate something that is
-    not among its outcomes is a problem too (the rules' own problems first, if any).
+    A folder is checked as the daemon loads it (every file, and the references between
+    them). With ``--rules``, a decide state whose DMSL component may activate something
+    that is not among its outcomes is a problem too (the rules' own problems first).
     """
     from dms.rules import RulesError, check_outcomes, load_rules
 
@@ -88,25 +119,41 @@ def check(
             for rule_problem in error.problems:
                 typer.echo(str(rule_problem))
             raise typer.Exit(1) from None
+    decisions = None if ruleset is None else partial(check_outcomes, ruleset)
     failed = False
-    for path in files:
+    for given in files or [BEHAVIORS_DIR]:
+        if given.is_dir():
+            failed = not _check_folder(given, decisions) or failed
+            continue
         try:
+            path = behavior_file(given)
             _library, spec = BehaviorLibrary.for_file(path)
         except BehaviorError as error:
             failed = True
             for problem in error.problems:
                 typer.echo(problem)
             continue
-        if ruleset is not None:
-            problems = decision_problems({spec.name: spec}, partial(check_outcomes, ruleset))
-            if problems:
-                failed = True
-                for problem in problems:
-                    typer.echo(problem)
-                continue
-        typer.echo(f"{path}: ok")
+        problems = [] if decisions is None else decision_problems({spec.name: spec}, decisions)
+        for problem in problems:
+            typer.echo(problem)
+        failed = failed or bool(problems)
+        if not problems:
+            typer.echo(f"{path}: ok")
     if failed:
         raise typer.Exit(1)
+
+
+def _check_folder(folder: Path, decisions: OutcomeCheck | None) -> bool:
+    """Check every behavior of ``folder`` together, as the daemon loads it: True if good."""
+    specs, problems = load_specs(folder)
+    if decisions is not None:
+        problems.extend(decision_problems(specs, decisions))
+    for problem in problems:
+        typer.echo(problem)
+    for path in sorted(folder.glob("*.yaml")):
+        if not any(problem.startswith(f"{path}:") for problem in problems):
+            typer.echo(f"{path}: ok")
+    return not problems
 
 
 RobotFactory = Callable[[int], RobotPort]
@@ -130,7 +177,7 @@ def _robot(seed: int) -> RobotPort:
 
 @app.command()
 def show(
-    file: Annotated[Path, typer.Argument(help="A behavior file.")],
+    file: Annotated[Path, typer.Argument(help="A behavior file, or a behavior's name.")],
     format: Annotated[
         DiagramFormat, typer.Option(help="dot, mermaid, or svg/png (drawn by Graphviz).")
     ] = DiagramFormat.DOT,
@@ -140,7 +187,7 @@ def show(
     ] = None,
 ) -> None:
     """A diagram of the behavior's states and transitions (nested machines as clusters)."""
-    _library, spec = BehaviorLibrary.for_file(file)
+    _library, spec = BehaviorLibrary.for_file(behavior_file(file))
     if format is DiagramFormat.MERMAID:
         data = to_mermaid(spec, active).encode()
     elif format is DiagramFormat.DOT:
@@ -160,7 +207,7 @@ def show(
 
 @app.command()
 def step(
-    file: Annotated[Path, typer.Argument(help="A behavior file.")],
+    file: Annotated[Path, typer.Argument(help="A behavior file, or a behavior's name.")],
     user: Annotated[str | None, typer.Option(help="Run as this user (params.user).")] = None,
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
     text: Annotated[str | None, typer.Option(help="args.text (for notification).")] = None,
@@ -172,7 +219,7 @@ def step(
     out; ``q`` stops. Each step prints the state, what changed in the userdata and the
     robot's commands. At the end of input it runs on.
     """
-    library, spec = BehaviorLibrary.for_file(file)
+    library, spec = BehaviorLibrary.for_file(behavior_file(file))
     run = BehaviorRun(
         library, spec, _robot(seed), _user(user), {"text": text} if text else {}, seed
     )
@@ -212,7 +259,7 @@ def step(
 
 @app.command("run")
 def run_command(
-    file: Annotated[Path, typer.Argument(help="A behavior file.")],
+    file: Annotated[Path, typer.Argument(help="A behavior file, or a behavior's name.")],
     user: Annotated[str | None, typer.Option(help="Run as this user (params.user).")] = None,
     answer: Annotated[
         list[str] | None, typer.Option(help="Answers to the questions, in order.")
@@ -223,7 +270,7 @@ def run_command(
     as_json: Annotated[bool, typer.Option("--json", help="Print only a JSON summary.")] = False,
 ) -> None:
     """Run the behavior to its end on the simulated robot and a virtual clock."""
-    library, spec = BehaviorLibrary.for_file(file)
+    library, spec = BehaviorLibrary.for_file(behavior_file(file))
     run = BehaviorRun(
         library, spec, _robot(seed), _user(user), {"text": text} if text else {}, seed
     )

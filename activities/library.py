@@ -2,9 +2,10 @@
 
 ``BehaviorLibrary.load()`` reads the sixteen shipped behaviors (``activities/behaviors``);
 every file is checked (blocks, parameters, transitions, reachability, references and
-their cycles) and a bad file is refused with ``file:line: state PATH: message``.
-``reload()`` swaps in a new version only when every file is good, so a running
-daemon keeps the previous behaviors otherwise.
+their cycles, the frames and gestures it names, the placeholders it binds) and a bad
+file is refused with ``file:line: state PATH: message``. ``reload()`` swaps in a new
+version only when every file is good, so a running daemon keeps the previous behaviors
+otherwise.
 """
 
 from __future__ import annotations
@@ -15,19 +16,17 @@ from typing import Any, Protocol
 
 from activities.activity import Activity
 from activities.blocks import BLOCKS
-from activities.context import ActivityContext
-from activities.engine import (
+from activities.checks import content_shapes, placeholder_problems
+from activities.containers import (
     Concurrence,
     ConcurrenceWait,
     Guard,
-    Io,
     Iterator,
-    Node,
-    Runtime,
     StateMachine,
     Trigger,
-    clear_content_cache,
 )
+from activities.context import ActivityContext
+from activities.engine import Io, Node, Runtime, clear_content_cache
 from activities.errors import BehaviorError, UnknownBehavior
 from activities.gaze import GazeKeeper
 from activities.spec import BehaviorSpec, StateSpec, check_references, parse_file
@@ -35,6 +34,21 @@ from activities.spec import BehaviorSpec, StateSpec, check_references, parse_fil
 PACKAGE_DIR = Path(__file__).parent
 BEHAVIORS_DIR = PACKAGE_DIR / "behaviors"
 CONTENT_DIR = PACKAGE_DIR / "content"
+
+
+def content_dirs(directory: Path | None) -> tuple[Path, ...]:
+    """Where the behaviors of ``directory`` find their content files, first first: its
+    own ``content``, its parent's, the shipped one."""
+    dirs = []
+    if directory is not None:
+        dirs.append(directory / "content")
+        dirs.append(directory.parent / "content")
+    dirs.append(CONTENT_DIR)
+    return tuple(dict.fromkeys(dirs))
+
+
+def _placeholder_problems(specs: Mapping[str, BehaviorSpec], directory: Path) -> list[str]:
+    return placeholder_problems(specs, content_shapes(content_dirs(directory)))
 
 
 def load_specs(directory: Path) -> tuple[dict[str, BehaviorSpec], list[str]]:
@@ -55,6 +69,7 @@ def load_specs(directory: Path) -> tuple[dict[str, BehaviorSpec], list[str]]:
             problems.append(f"{path}:1: behavior {spec.name!r} defined twice")
         specs[spec.name] = spec
     problems.extend(check_references(specs))
+    problems.extend(_placeholder_problems(specs, directory))
     return specs, problems
 
 
@@ -157,7 +172,8 @@ class BehaviorLibrary:
                     continue
                 specs[found.name] = found
         specs[spec.name] = spec
-        problems = [p for p in check_references(specs) if p.startswith(str(path))]
+        every = [*check_references(specs), *_placeholder_problems(specs, path.parent)]
+        problems = [p for p in every if p.startswith(f"{path}:")]
         if problems:
             raise BehaviorError(problems[0], problems)
         return cls(specs, path.parent), spec
@@ -186,12 +202,7 @@ class BehaviorLibrary:
         return []
 
     def content_dirs(self) -> tuple[Path, ...]:
-        dirs = []
-        if self.directory is not None:
-            dirs.append(self.directory / "content")
-            dirs.append(self.directory.parent / "content")
-        dirs.append(CONTENT_DIR)
-        return tuple(dict.fromkeys(dirs))
+        return content_dirs(self.directory)
 
     def create(
         self, name: str, ctx: ActivityContext, args: Mapping[str, Any] | None = None

@@ -1,5 +1,7 @@
 """The open format: behavior files in YAML, checked on load, saved without loss.
 
+Over 600 lines: the format's model, its parser and its structural checks read together.
+
 A behavior file is a state machine::
 
     name: quiz
@@ -22,13 +24,12 @@ or a container: ``state_machine``, ``concurrence``, ``iterator``, ``guard``,
 
 The parameters of blocks and containers are pydantic models (:class:`BlockParams`, the
 blocks' beside them in :mod:`activities.blocks`, the containers' here): the loader's
-parameter checks and :func:`json_schema` both come from them.
+parameter checks and the JSON Schema (:mod:`activities.schema`) both come from them.
 """
 
 from __future__ import annotations
 
 import itertools
-import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,12 +42,11 @@ from activities.blocks import (
     BLOCKS,
     AttendParams,
     BlockParams,
-    accepts_any_string,
     param_problems,
 )
 from activities.engine import PREEMPTED
 from activities.errors import BehaviorError
-from activities.template import PLACEHOLDER
+from activities.names import frame_problem, value_problems
 from dms.kernel.yamlfile import Located, load_located, plain
 from dms.kernel.yamlfile import line_of_key as _line
 
@@ -167,6 +167,8 @@ class StateSpec:
     present: tuple[str, ...] = ()
     """Which optional keys the file had, so saving writes back exactly them."""
     transition_lines: dict[str, int] = field(default_factory=dict, compare=False, repr=False)
+    param_lines: dict[str, int] = field(default_factory=dict, compare=False, repr=False)
+    """The line of each parameter as written, for the messages of later checks."""
 
     def to_dict(self) -> dict[str, Any]:
         body = dict(self.params)
@@ -314,6 +316,10 @@ def _parse_attend(checker: _Checker, data: Located) -> str | dict[str, Any] | No
         return None
     raw = data["attend"]
     line = _line(data, "attend")
+    frame = raw.get("frame") if isinstance(raw, dict) else raw
+    if isinstance(frame, str) and (problem := frame_problem(frame)) is not None:
+        at = _line(raw, "frame") if isinstance(raw, Located) else line
+        checker.problem(at, "", f"attend: {problem}")
     if isinstance(raw, str):
         return raw
     if not isinstance(raw, dict):
@@ -358,9 +364,12 @@ def _parse_state(
 ) -> StateSpec | None:
     """The block part of a state (params of a leaf, or a container with children)."""
     name = path.rsplit("/", 1)[-1]
+    lines = dict(params.key_lines) if isinstance(params, Located) else {}
     if block in BLOCKS:
         checked = _check_params(checker, path, block, params, BLOCKS[block].PARAMS, line)
-        return StateSpec(name, block, plain(checked), line=line)
+        for key, message in value_problems(block, checked):
+            checker.problem(lines.get(key, line), path, message)
+        return StateSpec(name, block, plain(checked), line=line, param_lines=lines)
     checked = _check_params(checker, path, block, params, CONTAINER_PARAMS[block], line)
     children: dict[str, StateSpec] = {}
     child_key = "states" if block in GROUPS else "state"
@@ -381,7 +390,7 @@ def _parse_state(
     own = {k: plain(v) for k, v in checked.items() if k != child_key}
     if block == "sequence":
         _connect(children, own.get("connector_outcome"))
-    return StateSpec(name, block, own, states=children, line=line)
+    return StateSpec(name, block, own, states=children, line=line, param_lines=lines)
 
 
 def _connect(children: Mapping[str, StateSpec], connector: Any) -> None:
@@ -579,6 +588,7 @@ def _check_reference_outcomes(spec: BehaviorSpec, specs: Mapping[str, BehaviorSp
 
     def walk(state: StateSpec, path: str) -> None:
         outcomes = set(state.params.get("outcomes") or []) if state.block in MACHINES else set()
+        breaks = set(state.params.get("break_on") or {}) if state.block == "iterator" else set()
         for name, child in state.states.items():
             child_path = f"{path}/{name}" if path else name
             target = specs.get(str(child.params.get("name"))) if child.block == "behavior" else None
@@ -588,111 +598,16 @@ def _check_reference_outcomes(spec: BehaviorSpec, specs: Mapping[str, BehaviorSp
                 for outcome in child.transitions:
                     if outcome not in own and outcome != PREEMPTED:
                         problems.append(f"{at} behavior {target.name} has no outcome {outcome!r}")
-                if state.block == "state_machine":
+                if state.block in MACHINES:
                     for outcome in sorted(own - set(child.transitions) - outcomes):
                         problems.append(f"{at} outcome {outcome!r} leads nowhere")
+                elif state.block == "iterator":
+                    taken = {*(state.params.get("continue_on") or []), *breaks}
+                    for outcome in sorted(own - taken):
+                        problems.append(
+                            f"{at} outcome {outcome!r} is neither in continue_on nor in break_on"
+                        )
             walk(child, child_path)
 
     walk(spec.root, "")
     return problems
-
-
-# ---------------------------------------------------------------- JSON Schema
-
-
-PLACEHOLDER_SCHEMA = {"type": "string", "pattern": rf"^\s*{PLACEHOLDER.pattern}\s*$"}
-"""A value that is exactly one placeholder: allowed for a parameter of any type."""
-
-
-def _written(prop: dict[str, Any], bound: bool) -> dict[str, Any]:
-    """A parameter's JSON Schema as pydantic makes it, as a file may write it: with a
-    placeholder allowed if it is ``bound`` on entry, without pydantic's titles, the
-    description and default last."""
-    core = {k: v for k, v in prop.items() if k not in ("title", "description", "default")}
-    notes: dict[str, Any] = {k: prop[k] for k in ("description", "default") if k in prop}
-    if bound and not accepts_any_string(core):
-        options = core["anyOf"] if set(core) == {"anyOf"} else [core]
-        core = {"anyOf": [*options, PLACEHOLDER_SCHEMA]}
-    return {**core, **notes}
-
-
-def _params_schema(model: type[BlockParams]) -> dict[str, Any]:
-    """The JSON Schema of a block's (or container's) parameters, from its model."""
-    generated = model.model_json_schema()
-    assert "$defs" not in generated, f"{model.__name__}: nested models are not supported"
-    props: dict[str, Any] = {}
-    for key, prop in generated["properties"].items():
-        if key == "states":
-            props[key] = {"type": "object", "additionalProperties": {"$ref": "#/$defs/state"}}
-        elif key == "state":
-            props[key] = {
-                "type": "object",
-                "additionalProperties": {"$ref": "#/$defs/state"},
-                "minProperties": 1,
-                "maxProperties": 1,
-            }
-        else:
-            props[key] = _written(prop, model.may_bind(key))
-    return {
-        "type": "object",
-        "properties": props,
-        "required": generated.get("required", []),
-        "additionalProperties": False,
-    }
-
-
-def json_schema() -> dict[str, Any]:
-    """The published JSON Schema of behavior files (``dms behavior schema``)."""
-    state_variants = []
-    names = {"type": "array", "items": {"type": "string"}}
-    for block, model in [
-        *((b, cls.PARAMS) for b, cls in BLOCKS.items()),
-        *CONTAINER_PARAMS.items(),
-    ]:
-        body = _params_schema(model)
-        doc = BLOCKS[block].DOC if block in BLOCKS else f"Container: {block}. {model.__doc__}"
-        state_variants.append(
-            {
-                "type": "object",
-                "description": doc,
-                "properties": {
-                    block: body,
-                    "transitions": {"type": "object", "additionalProperties": {"type": "string"}},
-                    "input_keys": names,
-                    "output_keys": names,
-                    "remapping": {"type": "object", "additionalProperties": {"type": "string"}},
-                },
-                "required": [block],
-                "additionalProperties": False,
-            }
-        )
-    return {
-        "$schema": "https://json-schema.org/draft/2020-12/schema",
-        "$id": "https://github.com/dms/activities/behavior.schema.json",
-        "title": "dms behavior",
-        "description": "A behavior of the Mini robot: a hierarchical state machine of blocks.",
-        "type": "object",
-        "properties": {
-            "name": {"type": "string", "minLength": 1},
-            "description": {"type": "string"},
-            "attend": {
-                "description": "The gaze kept on a frame while the behavior runs: its name "
-                "(user, face:<id>, object:<name>) or the attend block's settings.",
-                "oneOf": [{"type": "string"}, _params_schema(AttendParams)],
-            },
-            "outcomes": names,
-            "initial": {"type": "string"},
-            "userdata": {"type": "object"},
-            "states": {"type": "object", "additionalProperties": {"$ref": "#/$defs/state"}},
-        },
-        "required": ["name", "outcomes", "states"],
-        "additionalProperties": False,
-        "$defs": {"state": {"oneOf": state_variants}},
-    }
-
-
-SCHEMA_PATH = Path(__file__).with_name("behavior.schema.json")
-
-
-def schema_text() -> str:
-    return json.dumps(json_schema(), indent=2) + "\n"

@@ -3,12 +3,14 @@
 ``GET /`` is the page, ``GET /static/...`` its script, style and chart library (shipped in
 the package), ``GET /events`` the stream: one ``snapshot`` event with everything the
 model holds, then each change as it happens: ``robot``, ``state``, ``decision``,
-``structure``, ``agenda``, ``body`` (the joints and the last aim, at most four times a
-second) and ``report`` (a ``dms/errors`` message; an event named
+``decisions`` (the whole list, once a daemon's recent ones joined it), ``structure``,
+``agenda``, ``body`` (the joints and the last aim, at most four times a second) and
+``report`` (a ``dms/errors`` message; an event named
 ``error`` would be taken by the browser for the stream's own failure). ``GET
 /api/snapshot`` is the snapshot as JSON (for scripts and tests). A page that falls too far
 behind is cut off; its browser reconnects at once and starts again from a fresh snapshot.
-When the viewer stops, :meth:`LiveModel.end_streams` ends every stream at once.
+When the viewer stops, :meth:`LiveModel.end_streams` ends every stream at once. Every
+request goes through :class:`~dms.viewer.guard.HostGuard` first (DNS rebinding).
 """
 
 from __future__ import annotations
@@ -22,11 +24,13 @@ from pathlib import Path
 from typing import Any
 
 from starlette.applications import Starlette
+from starlette.middleware import Middleware
 from starlette.requests import Request
 from starlette.responses import FileResponse, JSONResponse, Response, StreamingResponse
 from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
+from dms.viewer.guard import WILDCARDS, HostGuard, allowed_hosts
 from dms.viewer.model import LiveModel
 
 STATIC = Path(str(resources.files("dms.viewer") / "static"))
@@ -43,7 +47,12 @@ def sse(name: str, data: Any) -> str:
     return f"event: {name}\ndata: {json.dumps(data, separators=(',', ':'), allow_nan=False)}\n\n"
 
 
-def create_app(model: LiveModel) -> Starlette:
+def create_app(
+    model: LiveModel, port: int, host: str = "127.0.0.1", allow_hosts: tuple[str, ...] = ()
+) -> Starlette:
+    """The app serving ``model`` on ``host:port`` (``0.0.0.0`` or ``::``: every interface,
+    reached by any of its addresses or ``allow_hosts``' names)."""
+
     async def index(_request: Request) -> Response:
         return FileResponse(STATIC / "index.html", headers={"Cache-Control": "no-store"})
 
@@ -99,5 +108,13 @@ def create_app(model: LiveModel) -> Starlette:
             Route("/events", events),
             Route("/api/snapshot", snapshot),
             Mount("/static", StaticFiles(directory=STATIC), name="static"),
-        ]
+        ],
+        middleware=[
+            Middleware(
+                HostGuard,
+                hosts=allowed_hosts(host, port, allow_hosts),
+                port=port,
+                any_address=host in WILDCARDS,
+            )
+        ],
     )

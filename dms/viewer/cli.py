@@ -56,6 +56,14 @@ def view_command(
     host: Annotated[
         str, typer.Option(help="Address to serve on; the page has no login: keep it on loopback.")
     ] = "127.0.0.1",
+    allow_host: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--allow-host",
+            help="Another name the page is opened by (with --host 0.0.0.0: the machine's name).",
+            show_default="loopback names, the --host address",
+        ),
+    ] = None,
     robot: Annotated[
         list[str] | None,
         typer.Option(
@@ -92,7 +100,8 @@ def view_command(
                 url = f"http://{_url_host(host)}:{address[1]}/"
                 watched = ", ".join(robots) if robots else "every robot on the bus"
                 ready = f"dms: viewer on {url} ({watched}); Ctrl-C stops"
-                serve(create_app(model), sock, ready, on_exit=model.end_streams)
+                app = create_app(model, address[1], host, tuple(allow_host or ()))
+                serve(app, sock, ready, on_exit=model.end_streams)
             finally:
                 source.close()
     finally:

@@ -8,6 +8,9 @@ snapshot and every event after it, in order: both happen under one lock.
 What daemons publish is read loosely: an unknown field is ignored and a field of the
 wrong type is treated as absent, so that a newer (or a broken) daemon never stops the
 viewer. The page shows every text with ``textContent``: an error may quote a hostile input.
+What is kept is bounded (:mod:`dms.viewer.bounds`), and a state dated ahead of the
+viewer's clock is set aside: what the viewer refuses it says on the page, as an error
+whose key is ``viewer``.
 """
 
 from __future__ import annotations
@@ -19,11 +22,12 @@ from collections import deque
 from collections.abc import Callable, Iterable, Mapping
 from contextlib import suppress
 from dataclasses import dataclass, field
-from datetime import datetime
+from datetime import UTC, datetime
 from typing import Any, get_args
 
 from dms.kernel import keys
 from dms.kernel.messages import JointName
+from dms.viewer import bounds
 
 HISTORY_S = 3600.0
 """How far back the drives chart goes."""
@@ -32,6 +36,11 @@ SAMPLE_EVERY_S = 1.0
 MAX_DECISIONS = 200
 MAX_ERRORS = 100
 MAX_ROBOTS = 256
+FUTURE_TOLERANCE_S = 60.0
+"""A state dated further ahead of the viewer's clock is set aside (a daemon's clock gone
+wrong would otherwise push the chart's hour past every point it holds)."""
+NOTICE_EVERY_S = 60.0
+"""The same refusal is said on the page at most this often per robot."""
 RETRY_STRUCTURE_S = 3.0
 """How soon a behavior structure that did not come (or came for another activity) is asked again."""
 BODY_EVERY_S = 0.25
@@ -77,8 +86,16 @@ class RobotView:
     """The ``body`` event last sent to the pages (what it said, and when)."""
     samples: deque[list[Any]] = field(default_factory=deque)
     """``[time, drives, motivations, wellbeing, activity]``, one a second, the last hour."""
-    decisions: deque[dict[str, Any]] = field(default_factory=lambda: deque(maxlen=MAX_DECISIONS))
-    errors: deque[dict[str, Any]] = field(default_factory=lambda: deque(maxlen=MAX_ERRORS))
+    decisions: bounds.BoundedLog = field(
+        default_factory=lambda: bounds.BoundedLog(MAX_DECISIONS, bounds.DECISIONS_BUDGET_CHARS)
+    )
+    errors: bounds.BoundedLog = field(
+        default_factory=lambda: bounds.BoundedLog(MAX_ERRORS, bounds.ERRORS_BUDGET_CHARS)
+    )
+    noticed: dict[str, float] = field(default_factory=dict)
+    """When each kind of refusal was last said on the page."""
+    ahead: bool = False
+    """Whether the last state was dated ahead of the viewer's clock (said once per run)."""
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -135,6 +152,19 @@ def _numbers(value: Any) -> dict[str, float]:
 
 def _dict(value: Any) -> dict[str, Any] | None:
     return value if isinstance(value, dict) else None
+
+
+def _series(value: Any) -> dict[str, float]:
+    """A chart point's ``{name: number}``: the first few, their names interned."""
+    numbers = _numbers(value)
+    return {bounds.interned(key): numbers[key] for key in list(numbers)[: bounds.MAX_SERIES]}
+
+
+_kb = bounds.size_text
+
+
+def _iso(seconds: float) -> str:
+    return datetime.fromtimestamp(seconds, UTC).isoformat(timespec="milliseconds")[:-6] + "Z"
 
 
 class LiveModel:
@@ -221,12 +251,14 @@ class LiveModel:
             if name == "dms":
                 if view.alive != alive:
                     view.alive, view.since = alive, self._clock()
-                if alive:  # a (re)started daemon: what it runs, its settings, its agenda
+                if alive:  # a (re)started daemon: what it runs, its settings, its agenda,
+                    # and what it decided before the viewer heard it
                     view.asked_for, view.asked_at = None, -math.inf
                     view.configured = {}
-                    wanted = ["config", "agenda"]
+                    wanted = ["config", "agenda", "decisions"]
             elif alive:
-                view.tokens.add(name)
+                if len(view.tokens) < bounds.MAX_TOKENS:
+                    view.tokens.add(bounds.short(name, 4 * bounds.MAX_NAME_CHARS))
             else:
                 view.tokens.discard(name)
             self._emit("robot", self._robot_event(view))
@@ -243,17 +275,26 @@ class LiveModel:
         }
 
     def on_state(self, robot: str, state: Any) -> None:
-        """One ``dms/state``: the page's state, and a chart point at most every second."""
+        """One ``dms/state``: the page's state, and a chart point at most every second.
+
+        A state too large to keep, or dated more than :data:`FUTURE_TOLERANCE_S` ahead
+        of the viewer's clock, is set aside, and the page is told (once)."""
         if not isinstance(state, dict):
             return
+        size = bounds.json_size(state)
         wanted: list[str] = []
         with self._lock:
             view = self._view(robot)
             if view is None:
                 return
+            now = self._clock()
+            if size > bounds.MAX_MESSAGE_CHARS:
+                self._notice(view, "state-size", f"a dms/state of {_kb(size)} not read", now)
+                return
+            if self._ahead(view, state, now):
+                return
             previous = view.state or {}
             view.state = state
-            now = self._clock()
             sample = self._sample(view, state, now)
             self._thresholds(view, state)
             activity = _dict(state.get("activity"))
@@ -281,18 +322,61 @@ class LiveModel:
         for what in wanted:
             self.need(robot, what)
 
+    def _ahead(self, view: RobotView, state: dict[str, Any], now: float) -> bool:
+        """Whether ``state`` is dated ahead of the viewer's clock (said once in a row)."""
+        t = epoch(state.get("time"), now)
+        if t <= now + FUTURE_TOLERANCE_S:
+            view.ahead = False
+            return False
+        if not view.ahead:
+            view.ahead = True
+            stamp = bounds.short(str(state.get("time")), bounds.MAX_NAME_CHARS)
+            self._report(
+                view,
+                f"a dms/state dated {stamp}, {t - now:.0f} s ahead of the viewer's clock, "
+                "set aside (and the states after it, until one is dated within "
+                f"{FUTURE_TOLERANCE_S:.0f} s of it)",
+                now,
+            )
+        return True
+
+    def _notice(self, view: RobotView, kind: str, text: str, now: float) -> None:
+        """Say ``text`` on the page, unless the same kind was said less than
+        :data:`NOTICE_EVERY_S` ago."""
+        if now - view.noticed.get(kind, -math.inf) < NOTICE_EVERY_S:
+            return
+        view.noticed[kind] = now
+        self._report(view, f"{text} (over the viewer's {_kb(bounds.MAX_MESSAGE_CHARS)})", now)
+
+    def _report(self, view: RobotView, text: str, now: float) -> None:
+        report = {"key": "viewer", "error": text, "time": _iso(now)}
+        view.errors.append(report)
+        self._emit("report", {"robot": view.robot, "error": report})
+
+    def on_oversized(self, robot: str, key: str, size: int) -> None:
+        """A message on ``key`` too large to be read at all (``size`` bytes)."""
+        with self._lock:
+            view = self._view(robot)
+            if view is None:
+                return
+            now = self._clock()
+            if key == keys.DMS_DECISION:
+                self._keep_decision(view, {"oversized": size, "time": _iso(now)})
+            else:
+                self._notice(view, "size " + key, f"a {key} of {_kb(size)} not read", now)
+
     def _sample(self, view: RobotView, state: dict[str, Any], now: float) -> list[Any] | None:
         motivation = _dict(state.get("motivation")) or {}
         wellbeing = _numbers({"w": motivation.get("wellbeing")}).get("w")
-        drives = _numbers(motivation.get("drives"))
+        drives = _series(motivation.get("drives"))
         if not drives and wellbeing is None:
             return None
         t = epoch(state.get("time"), now)
         if view.samples and t - view.samples[-1][0] < SAMPLE_EVERY_S:
             return None
         activity = (_dict(state.get("activity")) or {}).get("name")
-        name = activity if isinstance(activity, str) else None
-        sample = [t, drives, _numbers(motivation.get("motivations")), wellbeing, name]
+        name = bounds.interned(activity) if isinstance(activity, str) else None
+        sample = [t, drives, _series(motivation.get("motivations")), wellbeing, name]
         view.samples.append(sample)
         while view.samples and view.samples[0][0] < t - HISTORY_S:
             view.samples.popleft()
@@ -404,21 +488,45 @@ class LiveModel:
             view = self._view(robot)
             if view is None:
                 return
-            view.decisions.append(decision)
+            decision = self._keep_decision(view, decision)
             if decision.get("action") == "start":  # the same activity again is a new run
                 view.asked_for, view.asked_at = None, -math.inf
                 view.structure = None
-            self._emit("decision", {"robot": robot, "decision": decision})
 
-    def on_error(self, robot: str, report: Any) -> None:
-        if not isinstance(report, dict):
-            return
+    def _keep_decision(self, view: RobotView, decision: dict[str, Any]) -> dict[str, Any]:
+        """Keep ``decision`` (its short fields only, when it is too large) and send it."""
+        decision, size = bounds.bounded_decision(decision)
+        view.decisions.append(decision, size)
+        self._emit("decision", {"robot": view.robot, "decision": decision})
+        return decision
+
+    def set_recent(self, robot: str, decisions: list[Any]) -> None:
+        """The daemon's recent decisions (``dms/decisions``): those not heard yet join the
+        kept ones, in time order, and the pages get the whole list again."""
         with self._lock:
             view = self._view(robot)
             if view is None:
                 return
-            view.errors.append(report)
-            self._emit("report", {"robot": robot, "error": report})
+            kept = list(view.decisions)
+            now = self._clock()
+            recent = [bounds.bounded_decision(d)[0] for d in decisions if isinstance(d, dict)]
+            merged = [d for d in recent if d not in kept] + kept
+            if len(merged) == len(kept):
+                return
+            merged.sort(key=lambda d: epoch(d.get("time"), now))
+            view.decisions.replace(merged)
+            self._emit("decisions", {"robot": robot, "decisions": list(view.decisions)})
+
+    def on_error(self, robot: str, report: Any) -> None:
+        if not isinstance(report, dict):
+            return
+        kept = bounds.small_report(report)
+        with self._lock:
+            view = self._view(robot)
+            if view is None:
+                return
+            view.errors.append(kept)
+            self._emit("report", {"robot": robot, "error": kept})
 
     def set_structure(self, robot: str, reply: dict[str, Any]) -> None:
         """A ``dms/behavior`` reply, or ``{"error": why}`` (for the activity asked about)."""
@@ -426,8 +534,14 @@ class LiveModel:
             view = self._view(robot)
             if view is None:
                 return
-            if "error" in reply:
-                view.structure = {"activity": view.asked_for, "error": reply["error"]}
+            size = bounds.json_size(reply)
+            if size > bounds.MAX_STRUCTURE_CHARS:
+                why = f"the structure is too large to draw ({_kb(size)})"
+                view.structure = {"activity": view.asked_for, "error": why}
+            elif "error" in reply:
+                error = reply["error"]
+                why = bounds.short(error) if isinstance(error, str) else "not understood"
+                view.structure = {"activity": view.asked_for, "error": why}
             elif reply.get("activity") is None:
                 view.structure = None
             else:
@@ -440,7 +554,7 @@ class LiveModel:
             view = self._view(robot)
             if view is None:
                 return
-            view.agenda = {**agenda, "read": self._clock()}
+            view.agenda = {**bounds.small_agenda(agenda), "read": self._clock()}
             self._emit("agenda", {"robot": robot, "agenda": view.agenda})
 
 

@@ -3,11 +3,13 @@ thread for the queries it asks for (a query is never made from a Zenoh callback)
 
 Per robot (or ``robots/*`` when none is named): the ``alive/**`` tokens, ``dms/state``,
 ``dms/decision``, ``dms/errors``, ``robot/joints`` (where the robot looks) and
-``robot/command`` (of which only the ``aim`` channel is kept); ``dms/config`` when a
-daemon comes (for the drives' thresholds), ``dms/behavior`` when the activity changes,
+``robot/command`` (of which only the ``aim`` channel is kept); ``dms/config`` (for the
+drives' thresholds) and ``dms/decisions`` (what it decided before the viewer came) when a
+daemon comes, ``dms/behavior`` when the activity changes,
 and ``agenda/*`` when the user changes and every :data:`AGENDA_EVERY_S` seconds. An
 agenda that the daemon does not serve (``[privacy] serve_profiles``, or the viewer's role in a
-secured deployment) is shown with the daemon's reason.
+secured deployment) is shown with the daemon's reason. A payload over
+:data:`~dms.viewer.bounds.MAX_READ_BYTES` is not parsed: the model is told its size.
 """
 
 from __future__ import annotations
@@ -17,11 +19,12 @@ import logging
 import queue
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from dms.bus import ZenohClient
 from dms.kernel import keys
+from dms.viewer.bounds import MAX_READ_BYTES
 from dms.viewer.model import LiveModel, robot_of
 from motivation.config import load_config
 
@@ -29,6 +32,8 @@ log = logging.getLogger(__name__)
 
 CONFIG_KEY = "dms/config"
 """The daemon's settings, versions and files (the drives' thresholds are read from it)."""
+DECISIONS_KEY = "dms/decisions"
+"""The daemon's last decisions, asked for when it comes."""
 AGENDA_EVERY_S = 30.0
 QUERY_TIMEOUT_S = 3.0
 
@@ -47,31 +52,34 @@ class BusSource:
     def start(self) -> None:
         self.model.need = self.need
         self._worker.start()
+        handlers = {
+            keys.DMS_STATE: self.model.on_state,
+            keys.DMS_DECISION: self.model.on_decision,
+            keys.DMS_ERRORS: self.model.on_error,
+            keys.ROBOT_JOINTS: self.model.on_joints,
+            keys.ROBOT_COMMAND: self.model.on_command,
+        }
         for robot in self.robots:
-            self.client.subscribe_raw(
-                keys.absolute(robot, keys.DMS_STATE), self._json(self.model.on_state)
-            )
-            self.client.subscribe_raw(
-                keys.absolute(robot, keys.DMS_DECISION), self._json(self.model.on_decision)
-            )
-            self.client.subscribe_raw(
-                keys.absolute(robot, keys.DMS_ERRORS), self._json(self.model.on_error)
-            )
-            self.client.subscribe_raw(
-                keys.absolute(robot, keys.ROBOT_JOINTS), self._json(self.model.on_joints)
-            )
-            self.client.subscribe_raw(
-                keys.absolute(robot, keys.ROBOT_COMMAND), self._json(self.model.on_command)
-            )
+            for key, handler in handlers.items():
+                self.client.subscribe_raw(
+                    keys.absolute(robot, key), self._json(handler, self._oversized(key))
+                )
             self.client.watch_tokens(
                 keys.absolute(robot, keys.ALIVE_PREFIX + "**"), self.model.on_token
             )
 
+    def _oversized(self, key: str) -> Callable[[str, int], None]:
+        return lambda robot, size: self.model.on_oversized(robot, key, size)
+
     @staticmethod
-    def _json(handler: Any) -> Any:
+    def _json(handler: Any, oversized: Callable[[str, int], None] | None = None) -> Any:
         def on_sample(key_expr: str, raw: bytes) -> None:
             robot = robot_of(key_expr)
             if robot is None:
+                return
+            if len(raw) > MAX_READ_BYTES:
+                if oversized is not None:
+                    oversized(robot, len(raw))
                 return
             try:
                 payload = json.loads(raw, parse_constant=_not_json)
@@ -107,6 +115,8 @@ class BusSource:
                     self._read_config(robot)
                 elif what == "agenda":
                     self._read_agenda(robot)
+                elif what == "decisions":
+                    self._read_decisions(robot)
                 else:
                     for alive in self.model.agenda_due():
                         self._read_agenda(alive)
@@ -143,6 +153,14 @@ class BusSource:
             return
         thresholds = {name: drive.threshold for name, drive in config.active_drives.items()}
         self.model.set_thresholds(robot, thresholds)
+
+    def _read_decisions(self, robot: str) -> None:
+        """The daemon's last decisions (an older daemon has none to give: nothing shown)."""
+        replies = self._query(robot, DECISIONS_KEY)
+        body = next((body for ok, body in replies if ok and isinstance(body, dict)), None)
+        decisions = body.get("decisions") if body is not None else None
+        if isinstance(decisions, list):
+            self.model.set_recent(robot, decisions)
 
     def _read_agenda(self, robot: str) -> None:
         self._agenda_read[robot] = time.monotonic()

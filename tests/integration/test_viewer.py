@@ -9,15 +9,12 @@ from __future__ import annotations
 
 import itertools
 import json
-import os
-import queue
 import re
-import signal
 import subprocess
 import sys
 import threading
 import urllib.request
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
@@ -28,7 +25,6 @@ import zenoh
 from dms.viewer.model import LiveModel
 from dms.viewer.source import BusSource
 from tests.integration.harness import (
-    READY_TIMEOUT_S,
     Collector,
     DaemonProcess,
     client_session,
@@ -36,8 +32,14 @@ from tests.integration.harness import (
     query,
     running_daemon,
 )
+from tests.integration.viewer_harness import (
+    CHROMIUM,
+    CHROMIUM_ARGS,
+    EventStream,
+    browser_missing,
+    running_viewer,
+)
 
-CHROMIUM = Path("/usr/bin/chromium")
 SCREENSHOT = Path(__file__).resolve().parents[2] / "docs" / "viewer.png"
 QUIZ = {"action": "start", "activity": "quiz", "by": "test"}
 ANN_LEFT = {  # ann, her face 30° to the robot's left (atan2(0.35, 0.6)), a little below
@@ -69,99 +71,6 @@ def perceiving(
     finally:
         stop.set()
         thread.join(5)
-
-
-@contextmanager
-def running_viewer(port: int | None, *extra: str) -> Iterator[str]:
-    """``dms view --connect`` the daemon (on ``port``; None: ``extra`` says where) on a free
-    HTTP port; yields the page's URL once the viewer says it serves. Stopped with SIGINT,
-    it must exit 0."""
-    connect = ["--connect", f"tcp/127.0.0.1:{port}"] if port is not None else []
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "dms.cli", "view", *connect, "--port", "0", *extra],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=dict(os.environ, PYTHONUNBUFFERED="1"),
-    )
-    lines: queue.Queue[str | None] = queue.Queue()
-    said: list[str] = []
-
-    def drain() -> None:
-        assert proc.stderr is not None
-        for line in proc.stderr:
-            said.append(line)
-            lines.put(line)
-        lines.put(None)
-
-    threading.Thread(target=drain, daemon=True).start()
-    try:
-        url = _served_url(lines, said)
-        yield url
-        proc.send_signal(signal.SIGINT)
-        assert proc.wait(20) == 0, "".join(said)
-        assert "Traceback" not in "".join(said), "".join(said)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait(10)
-
-
-def _served_url(lines: queue.Queue[str | None], said: list[str]) -> str:
-    while True:
-        try:
-            line = lines.get(timeout=READY_TIMEOUT_S)
-        except queue.Empty:
-            raise AssertionError(f"the viewer never served: {''.join(said)}") from None
-        if line is None:
-            raise AssertionError(f"the viewer stopped: {''.join(said)}")
-        found = re.search(r"http://\S+/", line)
-        if line.startswith("dms: viewer on ") and found:
-            return found.group(0)
-
-
-class EventStream:
-    """The viewer's ``/events`` read as server-sent events, in a thread; every event kept."""
-
-    def __init__(self, url: str) -> None:
-        self.events: list[tuple[str, Any]] = []
-        self._cond = threading.Condition()
-        self._response = urllib.request.urlopen(url + "events", timeout=READY_TIMEOUT_S)
-        threading.Thread(target=self._read, daemon=True).start()
-
-    def _read(self) -> None:
-        name, data = "message", []
-        try:
-            for raw in self._response:
-                line = raw.decode().rstrip("\n")
-                if line.startswith("event: "):
-                    name = line[7:]
-                elif line.startswith("data: "):
-                    data.append(line[6:])
-                elif not line and data:
-                    with self._cond:
-                        self.events.append((name, json.loads("\n".join(data))))
-                        self._cond.notify_all()
-                    name, data = "message", []
-        except (OSError, ValueError, AttributeError):  # closed under the reader by close()
-            return
-
-    def wait_for(self, name: str, predicate: Callable[[Any], bool], timeout: float = 10.0) -> Any:
-        """The first ``name`` event so far, or to come, whose data satisfies ``predicate``."""
-        found: list[Any] = []
-
-        def ready() -> bool:
-            found[:] = [d for n, d in self.events if n == name and predicate(d)][:1]
-            return bool(found)
-
-        with self._cond:
-            if not self._cond.wait_for(ready, timeout):
-                seen = [n for n, _ in self.events[-10:]]
-                raise AssertionError(f"no matching {name} event within {timeout}s; last {seen}")
-        return found[0]
-
-    def close(self) -> None:
-        self._response.close()
 
 
 def _activity(state: dict[str, Any]) -> str | None:
@@ -217,18 +126,8 @@ def test_the_viewer_streams_state_structure_and_decisions(tmp_path: Path) -> Non
     assert agenda is not None and "serve_profiles" in agenda["error"]  # not served by default
 
 
-def _browser_missing() -> str | None:
-    if not CHROMIUM.exists():
-        return f"no Chromium at {CHROMIUM} (apt-get install chromium)"
-    try:
-        import playwright.sync_api  # noqa: F401
-    except ImportError:
-        return "the playwright package is not installed (pip install -e '.[dev]')"
-    return None
-
-
 @pytest.mark.integration
-@pytest.mark.skipif(_browser_missing() is not None, reason=str(_browser_missing()))
+@pytest.mark.skipif(browser_missing() is not None, reason=str(browser_missing()))
 def test_the_page_shows_the_activity_and_follows_a_request_in_chromium(tmp_path: Path) -> None:
     from playwright.sync_api import expect, sync_playwright
 
@@ -240,9 +139,7 @@ def test_the_page_shows_the_activity_and_follows_a_request_in_chromium(tmp_path:
     ):
         states = Collector(session, "robots/mini/dms/state")
         first = states.wait_for(lambda s: s["activity"] is not None)
-        browser = playwright.chromium.launch(
-            executable_path=str(CHROMIUM), args=["--no-sandbox", "--disable-dev-shm-usage"]
-        )
+        browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
         try:
             page = browser.new_page(viewport={"width": 1400, "height": 1000})
             page.goto(url)
@@ -297,6 +194,107 @@ def test_the_page_shows_the_activity_and_follows_a_request_in_chromium(tmp_path:
         finally:
             browser.close()
     assert SCREENSHOT.stat().st_size > 10_000
+
+
+NESTED_DANCE = """
+name: dance
+description: A dance whose moves hold a concurrence of their own (two levels of them).
+outcomes: [done, preempted]
+states:
+  DANCE:
+    concurrence:
+      outcomes: [done]
+      default_outcome: done
+      outcome_map: {done: {MUSIC: done}}
+      states:
+        MUSIC:
+          wait: {seconds: 120}
+        MOVES:
+          state_machine:
+            outcomes: [done]
+            states:
+              WARM_UP:
+                wait: {seconds: 0.5}
+                transitions: {done: BOTH}
+              BOTH:
+                concurrence:
+                  outcomes: [done]
+                  default_outcome: done
+                  states:
+                    LEFT:
+                      wait: {seconds: 100}
+                    RIGHT:
+                      wait: {seconds: 100}
+                transitions: {done: done}
+    transitions: {done: done, preempted: preempted}
+"""
+SHIPPED_BEHAVIORS = Path(__file__).resolve().parents[2] / "activities" / "behaviors"
+
+
+@pytest.mark.integration
+@pytest.mark.skipif(browser_missing() is not None, reason=str(browser_missing()))
+def test_the_page_lights_every_branch_of_nested_concurrences(tmp_path: Path) -> None:
+    from playwright.sync_api import expect, sync_playwright
+
+    behaviors = tmp_path / "behaviors"
+    behaviors.mkdir()
+    for shipped in SHIPPED_BEHAVIORS.glob("*.yaml"):
+        (behaviors / shipped.name).write_text(shipped.read_text())
+    (behaviors / "dance.yaml").write_text(NESTED_DANCE)
+    folder = f'\n[behaviors]\nfolder = "{behaviors}"\n'
+    with (
+        running_daemon(tmp_path, folder) as (daemon, session),
+        running_viewer(daemon.port) as url,
+        sync_playwright() as playwright,
+    ):
+        states = Collector(session, "robots/mini/dms/state")
+        browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        try:
+            page = browser.new_page(viewport={"width": 1400, "height": 1000})
+            page.goto(url)
+            expect(page.locator("#link")).to_have_text("live", timeout=20_000)
+            put(session, "request", {"action": "start", "activity": "dance", "by": "test"})
+            both = "DANCE/MUSIC,MOVES/BOTH/LEFT,RIGHT"  # each "," opens a concurrence's branch
+            states.wait_for(lambda s: (s["activity"] or {}).get("state") == both, timeout=30.0)
+            expect(page.locator("#activity-state")).to_have_text(both, timeout=5_000)
+            active = page.locator("#machine g.state.active")
+            expect(active).to_have_count(3, timeout=10_000)
+            lit = sorted(active.nth(i).get_attribute("data-path") or "" for i in range(3))
+            assert lit == ["DANCE/MOVES/BOTH/LEFT", "DANCE/MOVES/BOTH/RIGHT", "DANCE/MUSIC"]
+            for outer in ("DANCE", "DANCE/MOVES", "DANCE/MOVES/BOTH"):
+                on_path = page.locator(f'#machine g.state.on-path[data-path="{outer}"]')
+                expect(on_path).to_have_count(1)
+            assert page.locator('#machine g.state.active[data-path="DANCE/MOVES"]').count() == 0
+        finally:
+            browser.close()
+
+
+@pytest.mark.integration
+@pytest.mark.skipif(browser_missing() is not None, reason=str(browser_missing()))
+def test_a_page_opened_mid_session_shows_what_came_before(tmp_path: Path) -> None:
+    """The decisions made before the viewer started, and the daemon's own start time."""
+    from playwright.sync_api import expect, sync_playwright
+
+    with running_daemon(tmp_path) as (daemon, session):
+        states = Collector(session, "robots/mini/dms/state")
+        decisions = Collector(session, "robots/mini/dms/decision")
+        put(session, "request", QUIZ)
+        decisions.wait_for(lambda d: d["activity"] == "quiz" and d["action"] == "start")
+        started = states.wait_for(lambda s: "started" in s)["started"]
+        with running_viewer(daemon.port) as url, sync_playwright() as playwright:
+            browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+            try:
+                page = browser.new_page(viewport={"width": 1400, "height": 1000})
+                page.goto(url)
+                expect(page.locator("#link")).to_have_text("live", timeout=20_000)
+                before = page.locator("#decisions li[data-action=start][data-activity=quiz]")
+                expect(before).to_have_count(1, timeout=10_000)
+                robot = page.locator("#robot-name")
+                expect(robot).to_have_attribute("title", f"the daemon started at {started}")
+                expect(robot).to_contain_text("alive since")
+                expect(robot).not_to_contain_text("seen by the viewer")
+            finally:
+                browser.close()
 
 
 @pytest.mark.integration

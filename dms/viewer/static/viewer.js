@@ -91,6 +91,10 @@ const handlers = {
     trim(v.decisions, 200);
     dirty.add("decisions"); dirty.add("state");
   },
+  decisions(data) { // the daemon's recent decisions joined the viewer's: the whole list again
+    view(data.robot).decisions = data.decisions || [];
+    dirty.add("decisions"); dirty.add("state"); dirty.add("chart");
+  },
   report(data) { // a dms/errors message ("error" would be taken for the stream's own error event)
     const v = view(data.robot);
     v.errors.push(data.error);
@@ -173,8 +177,12 @@ function lastModeWhy(v) {
 
 function renderState(v) {
   const s = v.state || {};
+  // The daemon's own start time when its state says it; otherwise when the viewer saw
+  // the robot come or go (which, for a daemon already running, is when the viewer started).
+  const started = v.alive && typeof s.started === "string" ? s.started : null;
   $("robot-name").textContent = v.robot + (v.alive ? " · alive" : " · not alive") +
-    (v.since ? " since " + clock(v.since) : "");
+    (started ? " since " + isoClock(started) : v.since ? " since " + clock(v.since) + " (seen by the viewer)" : "");
+  $("robot-name").title = started ? "the daemon started at " + started : "";
   const activity = obj(s.activity);
   $("activity-name").textContent = activity ? activity.name : "none";
   $("activity-manager").textContent = activity ? activity.manager : "";
@@ -444,17 +452,60 @@ function renderMachine(v) {
   host.append(drawing);
 }
 
-function highlight(v) {
-  const host = $("machine");
-  const activity = obj((v.state || {}).activity);
-  const path = activity && typeof activity.state === "string" ? activity.state : "";
-  host.classList.toggle("paused", !!activity && activity.status === "paused");
+function naivePaths(path) {
+  // Every branch read from the root: right for a path without a nested concurrence.
   const onPath = new Set(), active = new Set();
   for (const branch of path.split(",").filter(Boolean)) {
     const parts = branch.split("/");
     for (let i = 1; i <= parts.length; i++) onPath.add(parts.slice(0, i).join("/"));
     active.add(branch);
   }
+  return { onPath, active };
+}
+
+function activePaths(root, path) {
+  // The running states of an active path, as drawn: "/" goes one level down and ","
+  // starts the next running branch, which belongs to the innermost open container that
+  // has that name among its states, a concurrence first (a state machine runs one state
+  // at a time). "DANCE/MUSIC,MOVES/STEP" is DANCE/MUSIC and DANCE/MOVES/STEP.
+  const onPath = new Set(), active = new Set();
+  if (!root || !path) return naivePaths(path || "");
+  const tokens = path.split(/([/,])/);
+  const open = [{ node: root, path: "" }];
+  let last = null;
+  const childOf = (node, name) => kids(node).find((c) => c.name === name) || null;
+  for (let i = 0; i < tokens.length; i += 2) {
+    const name = tokens[i], sep = i > 0 ? tokens[i - 1] : "";
+    if (sep === "/") open.push(last);
+    else if (sep === ",") {
+      active.add(last.path);
+      let at = -1;
+      for (let j = open.length - 1; j >= 0; j--) {
+        if (!childOf(open[j].node, name)) continue;
+        if (!isMachine(open[j].node)) { at = j; break; }
+        if (at < 0) at = j;
+      }
+      if (at < 0) return naivePaths(path);
+      open.length = at + 1;
+    }
+    const parent = open[open.length - 1];
+    const child = childOf(parent.node, name);
+    if (!child) return naivePaths(path);
+    last = { node: child, path: parent.path ? parent.path + "/" + name : name };
+    onPath.add(last.path);
+  }
+  if (last) active.add(last.path);
+  return { onPath, active };
+}
+
+function highlight(v) {
+  const host = $("machine");
+  const activity = obj((v.state || {}).activity);
+  const path = activity && typeof activity.state === "string" ? activity.state : "";
+  host.classList.toggle("paused", !!activity && activity.status === "paused");
+  const structure = obj(v.structure);
+  const root = structure && obj(structure.structure) ? obj(structure.structure.root) : null;
+  const { onPath, active } = activePaths(root, path);
   for (const g of host.querySelectorAll("g.state")) {
     const p = g.getAttribute("data-path");
     const isActive = p !== "" && active.has(p);
@@ -581,10 +632,15 @@ function renderDecisions(v) {
   list.replaceChildren();
   if (!v.decisions.length) list.append(el("li", { class: "muted" }, "no decision yet"));
   for (const d of v.decisions.slice(-SHOWN_DECISIONS).reverse()) {
-    const item = el("li", { "data-action": d.action, "data-activity": d.activity || "" });
+    const item = el("li", { "data-action": d.action || "", "data-activity": d.activity || "" });
     item.append(el("span", { class: "when" }, isoClock(d.time)), el("span", { class: "badge " + d.action }, d.action), " ");
     item.append(el("b", {}, d.activity || ""), " ", el("span", { class: "reason" }, `[${d.reason}${d.chosen_by ? " by " + d.chosen_by : ""}]`));
     if (d.detail) item.append(" ", el("span", { class: "muted" }, d.detail));
+    if (typeof d.oversized === "number") {
+      item.classList.add("oversized");
+      item.append(" ", el("span", { class: "badge oversized" },
+        `${Math.round(d.oversized / 1024)} kB: too large for the viewer, only its short fields kept`));
+    }
     const why = whyText(d.why);
     if (why) item.append(el("div", { class: "why" }, "why: " + why));
     if (obj(d.why)) {

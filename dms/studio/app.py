@@ -1,0 +1,187 @@
+"""The studio's web side: the page, its static files and a small JSON API.
+
+Every request passes the viewer's :class:`~dms.viewer.guard.HostGuard` (a foreign
+``Host`` is 421, a write from a foreign ``Origin`` 403) and then the
+:class:`~dms.studio.auth.TokenGuard` (no token, 403). The API:
+
+- ``GET /api/palette``: the blocks by category with their schemas;
+- ``GET /api/behaviors``: the folder and its behaviors; ``GET /api/behaviors/NAME``
+  opens one (the document and its hash);
+- ``POST /api/check`` ``{doc}``: the loader's messages and each state's outcomes;
+- ``POST /api/save`` ``{doc, hash}``: writes the file, or a draft (409: changed on disk);
+- ``POST /api/try/start`` ``{doc, state?}``, ``/api/try/step``, ``/api/try/answer``
+  ``{text}``, ``/api/try/stop``: a trial on the simulated Mini;
+- ``GET /api/robot``: the simulated robot's joints, for the Record button.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Awaitable, Callable
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from starlette.applications import Starlette
+from starlette.concurrency import run_in_threadpool
+from starlette.middleware import Middleware
+from starlette.requests import Request
+from starlette.responses import FileResponse, Response
+from starlette.routing import Mount, Route
+from starlette.staticfiles import StaticFiles
+
+from dms.kernel.body import NEUTRAL
+from dms.studio.auth import TokenGuard
+from dms.studio.folder import Folder, StudioError
+from dms.studio.palette import palette
+from dms.studio.trial import RobotFactory, Trial, one_state
+from dms.viewer.guard import WILDCARDS, HostGuard, allowed_hosts
+
+STATIC = Path(str(resources.files("dms.studio") / "static"))
+MAX_BODY = 2_000_000
+"""The largest request body taken: a behavior is a few kilobytes."""
+
+Handler = Callable[[Request], Awaitable[Any]]
+
+
+def reply(data: Any, status: int = 200) -> Response:
+    body = json.dumps(data, default=str, ensure_ascii=False, allow_nan=False)
+    return Response(body, status, media_type="application/json")
+
+
+def api(handler: Handler) -> Callable[[Request], Awaitable[Response]]:
+    """A JSON endpoint: a :class:`StudioError` becomes its status and message."""
+
+    async def endpoint(request: Request) -> Response:
+        try:
+            return reply(await handler(request))
+        except StudioError as error:
+            return reply({"error": str(error)}, error.status)
+
+    return endpoint
+
+
+async def body(request: Request) -> dict[str, Any]:
+    raw = await request.body()
+    if len(raw) > MAX_BODY:
+        raise StudioError("request too large", 413)
+    try:
+        data = json.loads(raw or b"{}")
+    except ValueError:
+        raise StudioError("the request is not JSON") from None
+    if not isinstance(data, dict):
+        raise StudioError("the request is a JSON object")
+    return data
+
+
+def document(data: dict[str, Any]) -> dict[str, Any]:
+    doc = data.get("doc")
+    if not isinstance(doc, dict):
+        raise StudioError("doc: a behavior, as a JSON object")
+    return doc
+
+
+class Studio:
+    """The state behind the API: the folder, and the trial running, if any."""
+
+    def __init__(self, folder: Folder, robot_factory: RobotFactory) -> None:
+        self.folder = folder
+        self.robot_factory = robot_factory
+        self.trial: Trial | None = None
+
+    async def palette(self, _request: Request) -> Any:
+        return palette()
+
+    async def behaviors(self, _request: Request) -> Any:
+        return {"folder": str(self.folder.directory), "names": self.folder.names()}
+
+    async def open(self, request: Request) -> Any:
+        return await run_in_threadpool(self.folder.open, request.path_params["name"])
+
+    async def check(self, request: Request) -> Any:
+        doc = document(await body(request))
+        report = await run_in_threadpool(self.folder.check, doc)
+        return report.to_json()
+
+    async def save(self, request: Request) -> Any:
+        data = await body(request)
+        opened = data.get("hash")
+        if opened is not None and not isinstance(opened, str):
+            raise StudioError("hash: the one the open gave, or null for a new behavior")
+        saved = await run_in_threadpool(self.folder.save, document(data), opened)
+        return saved.to_json()
+
+    async def try_start(self, request: Request) -> Any:
+        data = await body(request)
+        doc = document(data)
+        state = data.get("state")
+        if isinstance(state, str) and state:
+            doc = one_state(doc, state)
+        if self.trial is not None:
+            self.trial.stop()
+        self.trial = await run_in_threadpool(
+            Trial, self.folder, doc, self.robot_factory(0), int(data.get("seed") or 0)
+        )
+        return await run_in_threadpool(self.trial.step)
+
+    def _trial(self) -> Trial:
+        if self.trial is None:
+            raise StudioError("no trial: start one first", 409)
+        return self.trial
+
+    async def try_step(self, _request: Request) -> Any:
+        return await run_in_threadpool(self._trial().step)
+
+    async def try_answer(self, request: Request) -> Any:
+        text = (await body(request)).get("text")
+        if not isinstance(text, str):
+            raise StudioError("text: what the user says, screen:CHOICE or touch:PART")
+        return {"taken": await run_in_threadpool(self._trial().answer, text)}
+
+    async def try_stop(self, _request: Request) -> Any:
+        if self.trial is not None:
+            await run_in_threadpool(self.trial.stop)
+        return {"stopped": True}
+
+    async def robot(self, _request: Request) -> Any:
+        joints = self.trial.joints() if self.trial is not None else dict(NEUTRAL)
+        return {"joints": joints}
+
+
+def create_app(
+    studio: Studio,
+    token: str,
+    port: int,
+    host: str = "127.0.0.1",
+    allow_hosts: tuple[str, ...] = (),
+) -> Starlette:
+    """The app serving ``studio`` on ``host:port`` behind the host guard and ``token``."""
+
+    async def index(_request: Request) -> Response:
+        return FileResponse(STATIC / "index.html", headers={"Cache-Control": "no-store"})
+
+    return Starlette(
+        routes=[
+            Route("/", index),
+            Route("/api/palette", api(studio.palette)),
+            Route("/api/behaviors", api(studio.behaviors)),
+            Route("/api/behaviors/{name}", api(studio.open)),
+            Route("/api/check", api(studio.check), methods=["POST"]),
+            Route("/api/save", api(studio.save), methods=["POST"]),
+            Route("/api/try/start", api(studio.try_start), methods=["POST"]),
+            Route("/api/try/step", api(studio.try_step), methods=["POST"]),
+            Route("/api/try/answer", api(studio.try_answer), methods=["POST"]),
+            Route("/api/try/stop", api(studio.try_stop), methods=["POST"]),
+            Route("/api/robot", api(studio.robot)),
+            Mount("/static", StaticFiles(directory=STATIC), name="static"),
+        ],
+        middleware=[
+            Middleware(
+                HostGuard,
+                hosts=allowed_hosts(host, port, allow_hosts),
+                port=port,
+                any_address=host in WILDCARDS,
+            ),
+            Middleware(TokenGuard, token=token),
+        ],
+    )

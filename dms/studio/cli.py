@@ -1,0 +1,83 @@
+"""``dms studio``: serve the behavior studio on loopback until Ctrl-C.
+
+It prints a URL carrying the token the API asks for (as Jupyter does): open it, and
+the page keeps the token. The robot a trial drives is wired by the composition root
+(``dms/cli.py`` passes the simulated Mini), as for ``dms behavior step``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
+
+import typer
+
+from dms.kernel.errors import ConfigError
+
+if TYPE_CHECKING:
+    from dms.studio.trial import RobotFactory
+
+DEFAULT_PORT = 8090
+
+_robot_factory: list[RobotFactory] = []
+
+
+def use_robot(factory: RobotFactory) -> None:
+    """Wire the robot a trial drives (the composition root passes the simulated Mini)."""
+    _robot_factory[:] = [factory]
+
+
+def studio_command(
+    folder: Annotated[
+        Path | None,
+        typer.Option(
+            "--folder",
+            help="The behaviors folder to edit.",
+            show_default="the shipped behaviors",
+        ),
+    ] = None,
+    port: Annotated[
+        int, typer.Option(min=0, max=65535, help="HTTP port (0: any free port).")
+    ] = DEFAULT_PORT,
+    host: Annotated[
+        str, typer.Option(help="Address to serve on; it writes files: keep it on loopback.")
+    ] = "127.0.0.1",
+    allow_host: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--allow-host",
+            help="Another name the page is opened by (with --host 0.0.0.0: the machine's name).",
+            show_default="loopback names, the --host address",
+        ),
+    ] = None,
+) -> None:
+    """Build, try and save behaviors with the mouse, in a web page.
+
+    A palette of the blocks, the state machine drawn as boxes and arrows, the selected
+    state's parameters checked as you type, and a trial on the simulated Mini that lights
+    each state in turn. Saving keeps the file's comments and key order.
+    """
+    from activities.library import BEHAVIORS_DIR
+    from dms.studio.app import Studio, create_app
+    from dms.studio.auth import new_token
+    from dms.studio.folder import Folder
+    from dms.viewer.cli import bind
+    from dms.viewer.server import serve
+
+    if not _robot_factory:
+        raise ConfigError("no robot wired: run the studio through `dms studio`")
+    directory = (folder or BEHAVIORS_DIR).resolve()
+    if not directory.is_dir():
+        raise ConfigError(f"--folder {directory}: not a directory")
+    sock = bind(host, port)
+    try:
+        address = sock.getsockname()
+        token = new_token()
+        shown = f"[{host}]" if ":" in host else host
+        url = f"http://{shown}:{address[1]}/?token={token}"
+        studio = Studio(Folder(directory, BEHAVIORS_DIR), _robot_factory[0])
+        app = create_app(studio, token, address[1], host, tuple(allow_host or ()))
+        ready = f"dms: studio on {url} (editing {directory}); Ctrl-C stops"
+        serve(app, sock, ready, on_exit=lambda: None)
+    finally:
+        sock.close()

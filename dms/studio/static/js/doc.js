@@ -1,0 +1,242 @@
+// The behavior being edited: plain JSON as the file writes it, changed only through
+// these functions, each change kept for undo. A state's path is its names from the
+// top, joined by "/"; the behavior itself is the container at path "".
+
+const STATE_KEYS = ["transitions", "input_keys", "output_keys", "remapping"];
+export const MACHINES = ["state_machine", "sequence"];
+const GROUPS = ["state_machine", "sequence", "concurrence"];
+const HISTORY = 200;
+
+export function blockOf(state) {
+  const kinds = Object.keys(state || {}).filter((key) => !STATE_KEYS.includes(key));
+  return kinds.length === 1 ? kinds[0] : null;
+}
+
+export function childKey(block) {
+  if (GROUPS.includes(block)) return "states";
+  if (block === "iterator" || block === "guard") return "state";
+  return null;
+}
+
+export function parentOf(path) {
+  const at = path.lastIndexOf("/");
+  return at === -1 ? "" : path.slice(0, at);
+}
+
+export function nameOf(path) {
+  return path.slice(path.lastIndexOf("/") + 1);
+}
+
+export function join(parent, name) {
+  return parent ? `${parent}/${name}` : name;
+}
+
+export class Doc {
+  constructor(data, file) {
+    this.data = data;
+    this.file = file; // {name, hash}: the file it was opened from (hash null: new)
+    this.undoStack = [];
+    this.redoStack = [];
+    this.lastKey = null;
+    this.listeners = [];
+  }
+
+  onChange(listener) {
+    this.listeners.push(listener);
+  }
+
+  emit(structural) {
+    for (const listener of this.listeners) listener(structural);
+  }
+
+  // Apply fn to the data, kept for undo; changes with the same key in a row (typing in
+  // one field) are one step.
+  change(fn, { key = null, structural = true } = {}) {
+    if (key === null || key !== this.lastKey) {
+      this.undoStack.push(JSON.stringify(this.data));
+      if (this.undoStack.length > HISTORY) this.undoStack.shift();
+    }
+    this.lastKey = key;
+    this.redoStack = [];
+    const result = fn(this.data);
+    this.emit(structural);
+    return result;
+  }
+
+  undo() {
+    if (!this.undoStack.length) return false;
+    this.redoStack.push(JSON.stringify(this.data));
+    this.data = JSON.parse(this.undoStack.pop());
+    this.lastKey = null;
+    this.emit(true);
+    return true;
+  }
+
+  redo() {
+    if (!this.redoStack.length) return false;
+    this.undoStack.push(JSON.stringify(this.data));
+    this.data = JSON.parse(this.redoStack.pop());
+    this.lastKey = null;
+    this.emit(true);
+    return true;
+  }
+
+  // ------------------------------------------------------------ reading
+
+  state(path) {
+    if (!path) return null;
+    let states = this.data.states || {};
+    let state = null;
+    for (const name of path.split("/")) {
+      state = states[name];
+      if (!state) return null;
+      const block = blockOf(state);
+      const key = childKey(block);
+      states = (key && state[block] && state[block][key]) || {};
+    }
+    return state;
+  }
+
+  // The states mapping of the container at path ("" is the behavior's).
+  statesOf(path, create = false) {
+    if (!path) {
+      if (!this.data.states && create) this.data.states = {};
+      return this.data.states || {};
+    }
+    const state = this.state(path);
+    const block = blockOf(state);
+    const key = childKey(block);
+    if (!key) return null;
+    state[block] = state[block] || {};
+    if (!state[block][key] && create) state[block][key] = {};
+    return state[block][key] || {};
+  }
+
+  containerKind(path) {
+    if (!path) return "state_machine";
+    return blockOf(this.state(path));
+  }
+
+  isContainer(path) {
+    return childKey(blockOf(this.state(path))) !== null;
+  }
+
+  // The outcomes of the container at path (a machine's transitions may end in them).
+  containerOutcomes(path) {
+    if (!path) return this.data.outcomes || [];
+    const state = this.state(path);
+    const block = blockOf(state);
+    return (state && state[block] && state[block].outcomes) || [];
+  }
+
+  // ------------------------------------------------------------ changing
+
+  uniqueName(parent, base) {
+    const states = this.statesOf(parent) || {};
+    const root = base.toUpperCase().replace(/[^A-Z0-9_]/g, "_");
+    let name = root;
+    for (let n = 2; name in states; n += 1) name = `${root}_${n}`;
+    return name;
+  }
+
+  addState(parent, name, state) {
+    return this.change((data) => {
+      const states = this.statesOf(parent, true);
+      const kind = this.containerKind(parent);
+      if (childKey(kind) === "state") {
+        for (const old of Object.keys(states)) delete states[old]; // one state only
+      }
+      states[name] = state;
+      return join(parent, name);
+    });
+  }
+
+  deleteState(path) {
+    this.change(() => {
+      const parent = parentOf(path);
+      const name = nameOf(path);
+      const states = this.statesOf(parent);
+      delete states[name];
+      for (const other of Object.values(states)) {
+        const transitions = other.transitions || {};
+        for (const [outcome, target] of Object.entries(transitions)) {
+          if (target === name) delete transitions[outcome];
+        }
+      }
+      this.fixInitial(parent, name, null);
+    });
+  }
+
+  fixInitial(parent, oldName, newName) {
+    const holder = parent ? this.state(parent)[this.containerKind(parent)] : this.data;
+    if (holder && holder.initial === oldName) {
+      if (newName === null) delete holder.initial;
+      else holder.initial = newName;
+    }
+  }
+
+  // Rename a state, and every reference to it: its siblings' transitions, the
+  // container's initial state and a concurrence's outcome map.
+  rename(path, newName) {
+    const parent = parentOf(path);
+    const oldName = nameOf(path);
+    const states = this.statesOf(parent);
+    if (!newName || newName === oldName || newName in states) return null;
+    return this.change(() => {
+      const rebuilt = {};
+      for (const [name, state] of Object.entries(states)) {
+        rebuilt[name === oldName ? newName : name] = state;
+        const transitions = state.transitions || {};
+        for (const [outcome, target] of Object.entries(transitions)) {
+          if (target === oldName) transitions[outcome] = newName;
+        }
+      }
+      for (const name of Object.keys(states)) delete states[name];
+      Object.assign(states, rebuilt);
+      this.fixInitial(parent, oldName, newName);
+      if (this.containerKind(parent) === "concurrence") {
+        const map = this.state(parent).concurrence.outcome_map || {};
+        for (const wanted of Object.values(map)) {
+          if (wanted && oldName in wanted) {
+            wanted[newName] = wanted[oldName];
+            delete wanted[oldName];
+          }
+        }
+      }
+      return join(parent, newName);
+    });
+  }
+
+  setParam(path, key, value, typing) {
+    this.change(
+      () => {
+        const holder = path ? this.state(path)[blockOf(this.state(path))] : this.data;
+        if (value === undefined) delete holder[key];
+        else holder[key] = value;
+      },
+      { key: typing ? `${path}:${key}` : null, structural: !typing },
+    );
+  }
+
+  setTransition(path, outcome, target) {
+    this.change(() => {
+      const state = this.state(path);
+      const transitions = { ...(state.transitions || {}) };
+      if (target) transitions[outcome] = target;
+      else delete transitions[outcome];
+      if (Object.keys(transitions).length) state.transitions = transitions;
+      else delete state.transitions;
+    });
+  }
+
+  paste(parent, name, state) {
+    const copy = JSON.parse(JSON.stringify(state));
+    const siblings = this.statesOf(parent) || {};
+    const transitions = copy.transitions || {};
+    const ends = this.containerOutcomes(parent);
+    for (const [outcome, target] of Object.entries(transitions)) {
+      if (!(target in siblings) && !ends.includes(target)) delete transitions[outcome];
+    }
+    return this.addState(parent, this.uniqueName(parent, name), copy);
+  }
+}

@@ -1,0 +1,327 @@
+// The studio page: the palette, the canvas, the properties and the trial, wired to the
+// behavior being edited; it is checked by the server after each change.
+
+import { get, post } from "./api.js";
+import { Canvas } from "./canvas.js";
+import { blockOf, Doc, nameOf, parentOf } from "./doc.js";
+import { Props } from "./props.js";
+import { Trial } from "./trial.js";
+
+const CHECK_MS = 250;
+const POSE_PARAMS = ["joints", "pose", "keyframes"];
+const FIRST_VALUES = {
+  outcomes: ["done"], continue_on: ["done"], default_outcome: "done",
+  connector_outcome: "done", states: {}, state: {},
+};
+
+const app = {
+  doc: new Doc({ name: "new_behavior", outcomes: ["done"], states: {} }, { name: null, hash: null }),
+  blocks: {},
+  top: {},
+  selected: null,
+  clipboard: null,
+  checkTimer: null,
+  checkSeq: 0,
+  lastPose: null,
+};
+
+function status(text, kind = "") {
+  const box = document.getElementById("status");
+  box.textContent = text;
+  box.className = kind;
+}
+
+// The outcomes of a block before the server has said (its defaults).
+function defaultOutcomes(block, params) {
+  if (params && Array.isArray(params.outcomes)) return params.outcomes;
+  return (app.blocks[block] && app.blocks[block].outcomes) || [];
+}
+
+function firstParams(block) {
+  const schema = app.blocks[block].schema;
+  const params = {};
+  for (const name of schema.required || []) {
+    if (name in FIRST_VALUES) params[name] = JSON.parse(JSON.stringify(FIRST_VALUES[name]));
+    else {
+      const prop = schema.properties[name] || {};
+      const types = (prop.anyOf || [prop]).map((option) => option.type);
+      params[name] = types.includes("array") ? [] : types.includes("string") ? "" : null;
+    }
+  }
+  return params;
+}
+
+// ------------------------------------------------------------ palette
+
+function renderPalette(categories) {
+  const box = document.getElementById("palette");
+  box.replaceChildren();
+  for (const category of categories) {
+    const title = document.createElement("h3");
+    title.textContent = category.title;
+    box.appendChild(title);
+    for (const block of category.blocks) {
+      app.blocks[block.name] = block;
+      const button = document.createElement("button");
+      button.className = "block";
+      button.dataset.block = block.name;
+      button.textContent = block.name;
+      button.title = block.doc;
+      button.addEventListener("click", () => addBlock(block.name));
+      box.appendChild(button);
+    }
+  }
+}
+
+// A new state of `block`: inside the selected container, else beside the selected state.
+function addBlock(block) {
+  const doc = app.doc;
+  let parent = "";
+  if (app.selected) parent = doc.isContainer(app.selected) ? app.selected : parentOf(app.selected);
+  const name = doc.uniqueName(parent, block);
+  const path = doc.addState(parent, name, { [block]: firstParams(block) });
+  select(path);
+}
+
+// ------------------------------------------------------------ selection and edits
+
+const canvas = new Canvas(document.getElementById("canvas"), app.doc, {
+  select: (path) => select(path),
+  connect: (path, outcome, target) => app.doc.setTransition(path, outcome, target),
+  defaultOutcomes,
+});
+
+const props = new Props(document.getElementById("props"), {
+  doc: () => app.doc,
+  get blocks() { return app.blocks; },
+  get top() { return app.top; },
+  outcomesOf: (path) => canvas.outcomesOf(path),
+  setParam: (path, name, value, typing) => app.doc.setParam(path, name, value, typing),
+  rename: (path, name) => {
+    const renamed = app.doc.rename(path, name);
+    if (renamed) select(renamed);
+    else status(`cannot rename to ${name}: a state of that name exists`, "bad");
+  },
+  connect: (path, outcome, target) => app.doc.setTransition(path, outcome, target),
+  select: (path) => select(path),
+  action: (action, path) => act(action, path),
+});
+
+function select(path) {
+  app.selected = path && app.doc.state(path) ? path : null;
+  canvas.selected = app.selected;
+  canvas.render();
+  props.render(app.selected);
+}
+
+function act(action, path) {
+  if (action === "delete" && path) {
+    app.doc.deleteState(path);
+    select(null);
+  } else if (action === "copy" && path) {
+    app.clipboard = { name: nameOf(path), state: JSON.parse(JSON.stringify(app.doc.state(path))) };
+    status(`copied ${nameOf(path)}`);
+  } else if (action === "paste" && app.clipboard) {
+    const parent = path ? (app.doc.isContainer(path) ? path : parentOf(path)) : "";
+    select(app.doc.paste(parent, app.clipboard.name, app.clipboard.state));
+  } else if (action === "run-state" && path) {
+    trial.runState();
+  }
+}
+
+function watch(doc) {
+  doc.onChange((structural) => {
+    canvas.render();
+    if (structural) props.render(app.selected);
+    scheduleCheck();
+    updateTitle();
+  });
+}
+
+function setDoc(doc) {
+  app.doc = doc;
+  canvas.setDoc(doc);
+  canvas.outcomes = {};
+  watch(doc);
+  app.selected = null;
+  canvas.selected = null;
+  canvas.render();
+  canvas.fit();
+  props.render(null);
+  updateTitle();
+  scheduleCheck();
+}
+
+function updateTitle() {
+  const file = app.doc.file.name ? `${app.doc.file.name}.yaml` : "new, not saved";
+  document.getElementById("doc-title").textContent = `${app.doc.data.name || "?"} (${file})`;
+}
+
+// ------------------------------------------------------------ checking
+
+function scheduleCheck() {
+  clearTimeout(app.checkTimer);
+  app.checkTimer = setTimeout(check, CHECK_MS);
+}
+
+async function check() {
+  const seq = (app.checkSeq += 1);
+  const reply = await post("/api/check", { doc: app.doc.data });
+  if (seq !== app.checkSeq || !reply.ok) return;
+  const report = reply.data;
+  const changedPorts = JSON.stringify(report.outcomes) !== JSON.stringify(canvas.outcomes);
+  canvas.outcomes = report.outcomes;
+  canvas.marks = {};
+  for (const message of report.messages) {
+    if (!message.path) continue;
+    if (message.severity === "error") canvas.marks[message.path] = "bad";
+    else if (!canvas.marks[message.path]) canvas.marks[message.path] = "warn";
+  }
+  canvas.render();
+  if (changedPorts) rerenderKeepingFocus();
+  props.showMessages(report.messages);
+  const errors = report.messages.filter((m) => m.severity === "error").length;
+  const warnings = report.messages.length - errors;
+  document.body.dataset.checked = String(seq);
+  status(errors ? `${errors} problem(s): it does not load yet` : warnings ? `loads; ${warnings} warning(s)` : "loads",
+    errors ? "bad" : "good");
+}
+
+// After the ports changed (a branch added outcomes), the form is made again with the
+// new transitions: the field being typed in keeps the focus and the caret.
+function rerenderKeepingFocus() {
+  const active = document.activeElement;
+  const id = active && active.id;
+  const caret = active && "selectionStart" in active ? [active.selectionStart, active.selectionEnd] : null;
+  props.render(app.selected);
+  const again = id && document.getElementById(id);
+  if (!again) return;
+  again.focus();
+  if (caret && caret[0] !== null) again.setSelectionRange(caret[0], caret[1]);
+}
+
+// ------------------------------------------------------------ files
+
+async function refreshList(selectName) {
+  const reply = await get("/api/behaviors");
+  if (!reply.ok) return status(reply.data.error, "bad");
+  const select = document.getElementById("open-select");
+  select.replaceChildren(new Option("…", ""));
+  for (const name of reply.data.names) select.appendChild(new Option(name, name));
+  select.value = selectName || "";
+  select.title = reply.data.folder;
+}
+
+async function open(name) {
+  if (!name) return;
+  const reply = await get(`/api/behaviors/${encodeURIComponent(name)}`);
+  if (!reply.ok) return status(reply.data.error, "bad");
+  setDoc(new Doc(reply.data.doc, { name: reply.data.name, hash: reply.data.hash }));
+  status(`opened ${name}`);
+}
+
+async function save() {
+  const doc = app.doc;
+  const renamed = doc.file.name && doc.file.name !== doc.data.name;
+  const reply = await post("/api/save", { doc: doc.data, hash: renamed ? null : doc.file.hash });
+  if (!reply.ok) return status(`not saved: ${reply.data.error}`, "bad");
+  if (reply.data.kind === "saved") {
+    doc.file = { name: doc.data.name, hash: reply.data.hash };
+    status(`saved ${reply.data.file}`, "good");
+    await refreshList(doc.data.name);
+  } else {
+    status(`it does not load yet: saved as a draft, ${reply.data.file}; the file is unchanged`, "bad");
+  }
+  document.body.dataset.saved = reply.data.kind;
+  updateTitle();
+}
+
+// ------------------------------------------------------------ record
+
+function record(joints) {
+  app.lastPose = joints;
+  const path = app.selected;
+  const state = path && app.doc.state(path);
+  const block = blockOf(state);
+  const props = (block && app.blocks[block].schema.properties) || {};
+  const param = POSE_PARAMS.find((name) => name in props);
+  const shown = Object.entries(joints).map(([k, v]) => `${k} ${v.toFixed(2)}`).join(", ");
+  if (!param) {
+    status(`recorded pose: ${shown} (the selected block takes no pose)`);
+    return;
+  }
+  const type = (props[param].anyOf || [props[param]]).map((option) => option.type);
+  const old = state[block][param];
+  const value = type.includes("array") ? [...(Array.isArray(old) ? old : []), joints] : joints;
+  app.doc.setParam(path, param, value, false);
+  status(`recorded pose into ${param}: ${shown}`, "good");
+}
+
+const trial = new Trial({
+  doc: () => app.doc,
+  selected: () => app.selected,
+  lit: (paths) => {
+    canvas.lit = paths;
+    canvas.render();
+  },
+  status,
+  record,
+});
+
+// ------------------------------------------------------------ start
+
+function bindKeys() {
+  document.addEventListener("keydown", (event) => {
+    const typing = ["INPUT", "TEXTAREA", "SELECT"].includes(event.target.tagName);
+    const mod = event.ctrlKey || event.metaKey;
+    if (mod && event.key === "s") {
+      event.preventDefault();
+      save();
+    } else if (typing) {
+      return;
+    } else if (mod && event.key === "z") {
+      app.doc.undo();
+    } else if (mod && (event.key === "y" || (event.shiftKey && event.key === "Z"))) {
+      app.doc.redo();
+    } else if (mod && event.key === "c") {
+      act("copy", app.selected);
+    } else if (mod && event.key === "v") {
+      act("paste", app.selected);
+    } else if (event.key === "Delete" && app.selected) {
+      act("delete", app.selected);
+    }
+  });
+  const on = (id, fn) => document.getElementById(id).addEventListener("click", fn);
+  on("new-button", () => {
+    setDoc(new Doc({ name: "new_behavior", outcomes: ["done"], states: {} }, { name: null, hash: null }));
+    document.getElementById("open-select").value = "";
+  });
+  on("save-button", save);
+  on("undo-button", () => app.doc.undo());
+  on("redo-button", () => app.doc.redo());
+  on("zoom-in", () => canvas.zoom(1.2));
+  on("zoom-out", () => canvas.zoom(1 / 1.2));
+  on("zoom-fit", () => canvas.fit());
+  document.getElementById("open-select").addEventListener("change", (event) => open(event.target.value));
+}
+
+async function start() {
+  bindKeys();
+  const reply = await get("/api/palette");
+  if (!reply.ok) {
+    status(reply.data.error || "the studio refused the page: open the URL it printed", "bad");
+    return;
+  }
+  renderPalette(reply.data.categories);
+  app.top = reply.data.top;
+  await refreshList("");
+  setDoc(app.doc);
+  const wanted = new URLSearchParams(location.search).get("open");
+  if (wanted) {
+    document.getElementById("open-select").value = wanted;
+    await open(wanted);
+  }
+  document.body.dataset.ready = "1";
+}
+
+start();

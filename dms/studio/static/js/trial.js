@@ -1,0 +1,161 @@
+// Trying the behavior on the simulated Mini: run it all (a state every STEP_MS, pausing
+// at a question for the user's answer), step state by state, or run the selected state
+// alone. The active state is lit on the canvas; the userdata, what the robot says and
+// shows and its joints are shown beside it.
+
+import { get, post } from "./api.js";
+import { litPaths } from "./canvas.js";
+
+const STEP_MS = 600;
+const VALUE_CHARS = 160;
+
+function h(tag, text, cls) {
+  const node = document.createElement(tag);
+  if (text !== undefined) node.textContent = text;
+  if (cls) node.className = cls;
+  return node;
+}
+
+export class Trial {
+  constructor(handlers) {
+    this.handlers = handlers; // {doc(), selected(), lit(paths), status(text, kind), record(joints)}
+    this.running = false; // the run goes on by itself
+    this.active = false; // a trial was started and has not finished
+    this.timer = null;
+    const on = (id, fn) => document.getElementById(id).addEventListener("click", fn);
+    on("run-button", () => this.start(null, true));
+    on("step-button", () => (this.active ? this.step(false) : this.start(null, false)));
+    on("run-state-button", () => this.runState());
+    on("stop-button", () => this.stop());
+    on("answer-button", () => this.answer());
+    on("skip-button", () => this.step(this.running));
+    on("record-button", () => this.record());
+    document.getElementById("answer-input").addEventListener("keydown", (event) => {
+      if (event.key === "Enter") this.answer();
+    });
+  }
+
+  runState() {
+    const path = this.handlers.selected();
+    if (!path) {
+      this.handlers.status("select a state to run it alone", "bad");
+      return;
+    }
+    this.start(path, true);
+  }
+
+  async start(state, running) {
+    clearTimeout(this.timer);
+    this.running = running;
+    const body = { doc: this.handlers.doc().data };
+    if (state) body.state = state;
+    const reply = await post("/api/try/start", body);
+    if (!reply.ok) {
+      this.running = false;
+      this.handlers.status(reply.data.error, "bad");
+      return;
+    }
+    this.active = true;
+    this.prefix = state && state.includes("/") ? state.slice(0, state.lastIndexOf("/")) : "";
+    this.show(reply.data);
+  }
+
+  async step(running) {
+    clearTimeout(this.timer);
+    this.running = running;
+    const reply = await post("/api/try/step");
+    if (!reply.ok) {
+      this.handlers.status(reply.data.error, "bad");
+      return;
+    }
+    this.show(reply.data);
+  }
+
+  async answer() {
+    const input = document.getElementById("answer-input");
+    const text = input.value.trim();
+    if (!text || !this.active) return;
+    const reply = await post("/api/try/answer", { text });
+    input.value = "";
+    if (!reply.ok) {
+      this.handlers.status(reply.data.error, "bad");
+      return;
+    }
+    this.log(`answer "${text}" ${reply.data.taken ? "taken" : "not taken"}`);
+    this.step(this.running);
+  }
+
+  async stop() {
+    clearTimeout(this.timer);
+    this.running = false;
+    this.active = false;
+    await post("/api/try/stop");
+    this.handlers.lit(new Set());
+    document.getElementById("trial-state").textContent = "stopped";
+  }
+
+  show(step) {
+    const path = step.path && this.prefix ? `${this.prefix}/${step.path}` : step.path;
+    this.handlers.lit(step.finished ? new Set() : litPaths(path));
+    const where = document.getElementById("trial-state");
+    where.dataset.path = path || "";
+    where.textContent = step.finished
+      ? `ended: ${step.outcome || step.status}${step.error ? ` (${step.error})` : ""}`
+      : `${step.t.toFixed(1)} s  ${path || "-"}${step.awaiting_answer ? "  (waiting for an answer)" : ""}`;
+    this.showUserdata(step.userdata, step.changed);
+    this.showRobot(step.robot);
+    for (const command of step.commands) {
+      this.log(`${command.channel}.${command.action} ${JSON.stringify(command.args)}`);
+    }
+    if (step.finished) {
+      this.active = false;
+      this.running = false;
+      return;
+    }
+    if (this.running && !step.awaiting_answer) {
+      this.timer = setTimeout(() => this.step(true), STEP_MS);
+    } else if (step.awaiting_answer) {
+      document.getElementById("answer-input").focus();
+    }
+  }
+
+  showUserdata(userdata, changed) {
+    const table = document.getElementById("userdata");
+    table.replaceChildren();
+    for (const [key, value] of Object.entries(userdata || {})) {
+      const row = h("tr", undefined, key in (changed || {}) ? "changed" : "");
+      row.appendChild(h("td", key));
+      const text = JSON.stringify(value);
+      row.appendChild(h("td", text.length > VALUE_CHARS ? `${text.slice(0, VALUE_CHARS)}… (${text.length} characters)` : text));
+      table.appendChild(row);
+    }
+  }
+
+  showRobot(robot) {
+    const box = document.getElementById("robot");
+    box.replaceChildren();
+    const said = robot.said.length ? robot.said[robot.said.length - 1] : "";
+    box.appendChild(h("div", said ? `says: “${said}”` : "says nothing yet", "said"));
+    const screen = robot.screen || {};
+    const shown = [screen.text, ...(screen.choices || [])].filter(Boolean).join(" | ");
+    box.appendChild(h("div", `screen: ${shown || "-"}`));
+    const joints = Object.entries(robot.joints).map(([k, v]) => `${k} ${v.toFixed(2)}`).join("  ");
+    box.appendChild(h("div", joints, "joints"));
+  }
+
+  log(text) {
+    const list = document.getElementById("log");
+    list.appendChild(h("li", text));
+    while (list.children.length > 200) list.firstChild.remove();
+    list.lastChild.scrollIntoView({ block: "nearest" });
+  }
+
+  async record() {
+    const reply = await get("/api/robot");
+    if (!reply.ok) {
+      this.handlers.status(reply.data.error, "bad");
+      return;
+    }
+    this.handlers.record(reply.data.joints);
+  }
+}

@@ -1,0 +1,127 @@
+"""Trying a behavior, or one of its states, on the simulated Mini from the page.
+
+A :class:`Trial` wraps :class:`activities.stepper.BehaviorRun` (what ``dms behavior
+step`` runs) on the document being edited, saved or not: each step goes on to the next
+state and reports the state path (the page lights it), the userdata and what changed,
+the robot's commands, and what the robot shows: its last sentence, its screen and its
+joints. One state alone runs as a behavior of that one state whose outcomes end it.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from activities.errors import BehaviorError
+from activities.library import BehaviorLibrary
+from activities.spec import parse_text
+from activities.stepper import BehaviorRun, Step, parse_input
+from dms.kernel.body import NEUTRAL
+from dms.kernel.ports import RobotPort
+from dms.studio.check import WHERE, document_text, parse_message, state_outcomes, walk
+from dms.studio.folder import Folder, StudioError
+
+RobotFactory = Callable[[int], RobotPort]
+"""Makes the robot a trial drives, from its seed (the composition root passes the
+simulated Mini: the application floor does not import ``sim``)."""
+MAX_S = 600.0
+"""Virtual seconds one step may wait for the next state (a question times out sooner)."""
+SAID_KEPT = 6
+
+
+def one_state(doc: Mapping[str, Any], path: str) -> dict[str, Any]:
+    """A behavior of the state at ``path`` alone, each of its outcomes ending it."""
+    states = dict(walk(doc.get("states") or {}))
+    if path not in states:
+        raise StudioError(f"no state {path!r}", 404)
+    outcomes = state_outcomes(doc, {}).get(path, [])
+    state = {key: value for key, value in states[path].items() if key != "transitions"}
+    if outcomes:
+        state["transitions"] = {outcome: outcome for outcome in outcomes}
+    out: dict[str, Any] = {"name": doc.get("name"), "outcomes": outcomes or ["done"]}
+    if isinstance(doc.get("userdata"), dict):
+        out["userdata"] = doc["userdata"]
+    out["states"] = {path.rsplit("/", 1)[-1]: state}
+    return out
+
+
+class Trial:
+    """One run on a fresh simulated robot, advanced a state at a time."""
+
+    def __init__(
+        self, folder: Folder, doc: Mapping[str, Any], robot: RobotPort, seed: int = 0
+    ) -> None:
+        try:
+            spec = parse_text(document_text(doc), WHERE)
+        except BehaviorError as error:
+            shown = "; ".join(
+                f"{m.path or 'behavior'}: {m.text}" for m in map(parse_message, error.problems[:3])
+            )
+            raise StudioError(f"it does not load yet: {shown}", 422) from None
+        specs = {**folder.others(spec.name), spec.name: spec}
+        self.robot = robot
+        self.run = BehaviorRun(BehaviorLibrary(specs, folder.directory), spec, robot, seed=seed)
+        self.lock = threading.Lock()
+        self.said: list[str] = []
+        self.screen: dict[str, Any] = {}
+        self.started = False
+
+    def step(self) -> dict[str, Any]:
+        """Start, or go on to the next state; what happened, for the page."""
+        with self.lock:
+            if not self.started:
+                self.started = True
+                return self._report(self.run.begin())
+            if self.run.activity.finished:
+                return self._report(None)
+            return self._report(self.run.next_state(max_s=MAX_S))
+
+    def answer(self, text: str) -> bool:
+        """The user's answer (``screen:CHOICE``, ``touch:PART`` or words said)."""
+        with self.lock:
+            try:
+                event = parse_input(text)
+            except ValueError as error:
+                raise StudioError(f"not understood: {str(error).splitlines()[0]}") from None
+            return event is not None and self.run.deliver(event)
+
+    def stop(self) -> None:
+        with self.lock:
+            if not self.run.activity.finished:
+                self.run.activity.cancel(self.run.clock.now())
+
+    def joints(self) -> dict[str, float]:
+        """The robot's joints now (neutral for a robot that does not report them)."""
+        reader = getattr(self.robot, "joints", None)
+        if reader is None:
+            return dict(NEUTRAL)
+        return {
+            name: round(float(value), 3) for name, value in reader(self.run.clock.now()).items()
+        }
+
+    def _report(self, step: Step | None) -> dict[str, Any]:
+        activity = self.run.activity
+        commands = []
+        for command in step.commands if step is not None else []:
+            commands.append(
+                {"channel": command.channel, "action": command.action, "args": command.args}
+            )
+            if command.channel == "speech" and command.action == "say":
+                self.said = [*self.said, str(command.args.get("text", ""))][-SAID_KEPT:]
+            elif command.channel == "screen":
+                self.screen = dict(command.args)
+        result = activity.result if activity.finished else None
+        return {
+            "t": round(self.run.t, 2),
+            "path": activity.state_path,
+            "status": activity.status.value if activity.status else "running",
+            "userdata": step.userdata if step is not None else dict(activity.userdata),
+            "changed": step.changed if step is not None else {},
+            "commands": commands,
+            "awaiting_answer": not activity.finished and self.run.awaiting_answer,
+            "finished": activity.finished,
+            "outcome": result.outcome if result is not None else None,
+            "error": result.error if result is not None else None,
+            "robot": {"said": self.said, "screen": self.screen, "joints": self.joints()},
+        }

@@ -1,0 +1,229 @@
+"""``dms studio`` as a real process on 127.0.0.1, read as a script would (http.client).
+
+The refusals (a foreign ``Host``, a missing or wrong token, a write from a foreign
+``Origin``), and saving: every shipped behavior opened and saved unchanged is
+byte-identical, an edit keeps the file's comments, a file changed on disk since it was
+opened is not overwritten, and a behavior that does not load is only saved as a draft.
+The page itself is driven in Chromium by test_studio_page.py.
+"""
+
+from __future__ import annotations
+
+import http.client
+import json
+import os
+import queue
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlsplit
+
+import pytest
+
+from activities.library import BEHAVIORS_DIR
+from tests.integration.harness import READY_TIMEOUT_S
+
+
+@dataclass(frozen=True)
+class Studio:
+    """A running studio: its page's URL (with the token), address and folder."""
+
+    url: str
+    host: str
+    port: int
+    token: str
+    folder: Path
+
+    def request(
+        self,
+        method: str,
+        path: str,
+        body: Any = None,
+        headers: dict[str, str] | None = None,
+        token: bool = True,
+    ) -> tuple[int, Any]:
+        connection = http.client.HTTPConnection(self.host, self.port, timeout=30)
+        sent = dict(headers or {})
+        if token:
+            sent.setdefault("X-Studio-Token", self.token)
+        data = None
+        if body is not None:
+            data = json.dumps(body).encode()
+            sent["Content-Type"] = "application/json"
+        try:
+            connection.request(method, path, body=data, headers=sent)
+            response = connection.getresponse()
+            raw = response.read()
+        finally:
+            connection.close()
+        try:
+            return response.status, json.loads(raw)
+        except ValueError:
+            return response.status, raw.decode(errors="replace")
+
+
+@contextmanager
+def running_studio(folder: Path) -> Iterator[Studio]:
+    """``dms studio --folder FOLDER --port 0``; stopped with SIGINT, it must exit 0."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "dms.cli", "studio", "--folder", str(folder), "--port", "0"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=dict(os.environ, PYTHONUNBUFFERED="1"),
+    )
+    lines: queue.Queue[str | None] = queue.Queue()
+    said: list[str] = []
+
+    def drain() -> None:
+        assert proc.stderr is not None
+        for line in proc.stderr:
+            said.append(line)
+            lines.put(line)
+        lines.put(None)
+
+    threading.Thread(target=drain, daemon=True).start()
+    try:
+        url = ""
+        while not url:
+            line = lines.get(timeout=READY_TIMEOUT_S)
+            assert line is not None, f"the studio stopped: {''.join(said)}"
+            found = re.search(r"http://\S+", line)
+            if line.startswith("dms: studio on ") and found:
+                url = found.group(0)
+        parts = urlsplit(url)
+        token = parts.query.removeprefix("token=")
+        assert parts.hostname is not None and parts.port is not None
+        yield Studio(url, parts.hostname, parts.port, token, folder)
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(20) == 0, "".join(said)
+        assert "Traceback" not in "".join(said), "".join(said)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(10)
+
+
+def shipped_copy(tmp_path: Path) -> Path:
+    folder = tmp_path / "behaviors"
+    shutil.copytree(BEHAVIORS_DIR, folder)
+    return folder
+
+
+@pytest.fixture
+def studio(tmp_path: Path) -> Iterator[Studio]:
+    with running_studio(shipped_copy(tmp_path)) as running:
+        yield running
+
+
+@pytest.mark.integration
+def test_a_foreign_host_a_missing_token_and_a_foreign_origin_are_refused(studio: Studio) -> None:
+    status, text = studio.request("GET", "/api/behaviors", headers={"Host": "evil.example:80"})
+    assert status == 421, text
+    status, text = studio.request("GET", "/api/behaviors", token=False)
+    assert status == 403 and "token" in text
+    status, text = studio.request("GET", "/", token=False)
+    assert status == 403 and "dms studio" in text
+    status, _ = studio.request("GET", "/api/behaviors", headers={"X-Studio-Token": "wrong"})
+    assert status == 403
+    status, _ = studio.request("GET", f"/?token={studio.token}", token=False)
+    assert status == 200
+    doc = {"name": "quiz", "outcomes": ["done"], "states": {}}
+    origin = {"Origin": "http://evil.example"}
+    status, text = studio.request("POST", "/api/save", {"doc": doc, "hash": None}, headers=origin)
+    assert status == 403 and "origin" in text
+    status, names = studio.request("GET", "/api/behaviors")
+    assert status == 200 and "quiz" in names["names"]
+
+
+@pytest.mark.integration
+def test_every_shipped_behavior_saved_unchanged_is_byte_identical(studio: Studio) -> None:
+    for path in sorted(studio.folder.glob("*.yaml")):
+        before = path.read_bytes()
+        status, opened = studio.request("GET", f"/api/behaviors/{path.stem}")
+        assert status == 200, opened
+        status, saved = studio.request(
+            "POST", "/api/save", {"doc": opened["doc"], "hash": opened["hash"]}
+        )
+        assert status == 200 and saved["kind"] == "saved", saved
+        assert path.read_bytes() == before, path.name
+
+
+@pytest.mark.integration
+def test_an_edit_keeps_the_comments_and_a_file_changed_on_disk_is_not_overwritten(
+    studio: Studio,
+) -> None:
+    path = studio.folder / "sayings.yaml"
+    text = path.read_text().replace("states:\n", "states:  # the sayings, in order\n", 1)
+    path.write_text("# edited by hand\n" + text)
+    _, opened = studio.request("GET", "/api/behaviors/sayings")
+    doc = opened["doc"]
+    doc["description"] = "Sayings, told one by one."
+    status, saved = studio.request("POST", "/api/save", {"doc": doc, "hash": opened["hash"]})
+    assert status == 200 and saved["kind"] == "saved", saved
+    written = path.read_text()
+    assert written.startswith("# edited by hand\n")
+    assert "states:  # the sayings, in order\n" in written
+    assert "Sayings, told one by one." in written
+    path.write_text(written + "# changed by someone else\n")
+    status, refused = studio.request("POST", "/api/save", {"doc": doc, "hash": saved["hash"]})
+    assert status == 409 and "changed on disk" in refused["error"]
+    assert path.read_text().endswith("# changed by someone else\n")
+
+
+@pytest.mark.integration
+def test_a_behavior_that_does_not_load_is_saved_only_as_a_draft(studio: Studio) -> None:
+    path = studio.folder / "wait.yaml"
+    before = path.read_bytes()
+    _, opened = studio.request("GET", "/api/behaviors/wait")
+    doc = opened["doc"]
+    first = next(iter(doc["states"]))
+    doc["states"][first]["transitions"] = {"done": "NOWHERE"}
+    status, saved = studio.request("POST", "/api/save", {"doc": doc, "hash": opened["hash"]})
+    assert status == 200 and saved["kind"] == "draft", saved
+    assert any("NOWHERE" in message["text"] for message in saved["messages"])
+    assert path.read_bytes() == before
+    draft = studio.folder / "drafts" / "wait.draft.yaml"
+    assert "NOWHERE" in draft.read_text()
+    status, report = studio.request("POST", "/api/check", {"doc": doc})
+    assert status == 200 and not report["ok"]
+    assert report["messages"][0]["path"] == first
+    assert report["messages"][0]["param"] == "transitions"
+
+
+@pytest.mark.integration
+def test_a_trial_steps_through_a_behavior_on_the_simulated_mini(studio: Studio) -> None:
+    doc = {
+        "name": "hello",
+        "outcomes": ["done"],
+        "states": {
+            "HELLO": {"speak": {"text": "Hello!"}, "transitions": {"done": "NOD"}},
+            "NOD": {"gesture": {"name": "nod"}, "transitions": {"done": "COUNT"}},
+            "COUNT": {"set_data": {"add": {"greeted": 1}}, "transitions": {"done": "BYE"}},
+            "BYE": {"speak": {"text": "Bye!"}},
+        },
+    }
+    status, step = studio.request("POST", "/api/try/start", {"doc": doc})
+    assert status == 200, step
+    paths = [step["path"]]
+    for _ in range(20):
+        status, step = studio.request("POST", "/api/try/step")
+        assert status == 200, step
+        paths.append(step["path"])
+        if step["finished"]:
+            break
+    assert step["finished"] and step["outcome"] == "done", step
+    # a state that ends in the tick it starts (COUNT) is never seen running
+    assert [path for path in paths if path] == ["HELLO", "NOD", "BYE"], paths
+    assert step["robot"]["said"] == ["Hello!", "Bye!"], step
+    assert step["userdata"] == {"greeted": 1}, step
+    status, pose = studio.request("GET", "/api/robot")
+    assert status == 200 and set(pose["joints"]) >= {"head", "neck", "hip"}

@@ -1,0 +1,153 @@
+"""``dms studio``'s page in Debian's Chromium, driven by Playwright as a person would.
+
+A new behavior built from an empty canvas with clicks and typing only (a speak state, an
+ask with two answers, transitions drawn by dragging), a typo'd placeholder and a wrong
+value flagged at their field before saving, the file saved and checked by ``dms behavior
+check``, the behavior tried on the simulated Mini with each state lit in turn, and a
+shipped behavior opened and saved unchanged, byte for byte. Saves docs/studio.png.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tests.integration.test_studio import Studio, running_studio, shipped_copy
+from tests.integration.viewer_harness import CHROMIUM, CHROMIUM_ARGS, browser_missing
+
+SCREENSHOT = Path(__file__).resolve().parents[2] / "docs" / "studio.png"
+WAIT_MS = 15_000
+
+pytestmark = [
+    pytest.mark.integration,
+    pytest.mark.skipif(browser_missing() is not None, reason=str(browser_missing())),
+]
+
+
+@pytest.fixture
+def studio(tmp_path: Path) -> Iterator[Studio]:
+    with running_studio(shipped_copy(tmp_path)) as running:
+        yield running
+
+
+@pytest.fixture
+def page(studio: Studio) -> Iterator[Any]:
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        try:
+            page = browser.new_page(viewport={"width": 1400, "height": 900})
+            errors: list[str] = []
+            page.on("pageerror", lambda error: errors.append(str(error)))
+            page.set_default_timeout(WAIT_MS)
+            yield page
+            assert not errors, errors
+        finally:
+            browser.close()
+
+
+def ready(page: Any, url: str) -> None:
+    page.goto(url)
+    page.wait_for_selector("body[data-ready='1']")
+
+
+def drag(page: Any, source: str, target: str) -> None:
+    """Press on ``source``, move over ``target`` and let go there."""
+    page.locator(source).hover()
+    page.mouse.down()
+    box = page.locator(target).bounding_box()
+    page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2, steps=8)
+    page.mouse.up()
+
+
+def message_at(page: Any, param: str, severity: str) -> str:
+    found = page.locator(f'#props .field[data-param="{param}"] .msg.{severity}')
+    found.first.wait_for()
+    return str(found.first.inner_text())
+
+
+def test_a_behavior_built_with_clicks_and_typing_is_saved_and_loads(
+    studio: Studio, page: Any
+) -> None:
+    ready(page, studio.url)
+    page.fill("#param-name", "greeting")
+    page.click('#palette button[data-block="speak"]')
+    page.fill("#param-text", "Hello {user.name|there}! I remember {answr}.")
+    assert "'answr'" in message_at(page, "text", "warning")
+    page.fill("#param-text", "Hello {user.name|there}!")
+    page.click('#palette button[data-block="ask"]')
+    page.fill("#param-question", "Shall we listen to some music?")
+    page.fill("#param-choices", "yes\nno")
+    page.check("#param-branch")
+    page.fill("#param-timeout_s", "soon")
+    assert "timeout_s" in message_at(page, "timeout_s", "error")
+    page.fill("#param-timeout_s", "10")
+    page.wait_for_selector('.port[data-path="ASK"][data-port="yes"]')
+    drag(
+        page, '.port[data-path="SPEAK"][data-port="done"] circle', '.state[data-path="ASK"] > rect'
+    )
+    drag(page, '.port[data-path="ASK"][data-port="yes"] circle', '.terminal[data-end="done"] rect')
+    page.click('.state[data-path="ASK"] > rect')
+    page.select_option('select[data-outcome="no"]', "done")
+    page.select_option('select[data-outcome="no_answer"]', "done")
+    page.wait_for_selector("#status.good")
+    page.click("#save-button")
+    page.wait_for_selector("body[data-saved='saved']")
+    saved = studio.folder / "greeting.yaml"
+    checked = subprocess.run(
+        [sys.executable, "-m", "dms.cli", "behavior", "check", str(saved)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert checked.returncode == 0, checked.stdout + checked.stderr + saved.read_text()
+    text = saved.read_text()
+    assert "transitions: {done: ASK}" in text and '"yes": done' in text, text
+
+    page.evaluate(
+        """() => {
+          window.litSeen = [];
+          const box = document.getElementById('trial-state');
+          new MutationObserver(() => {
+            const path = box.dataset.path;
+            const lit = path && document.querySelector(`.state.lit[data-path="${path}"]`);
+            const last = window.litSeen[window.litSeen.length - 1];
+            if (lit && last !== path) window.litSeen.push(path);
+          }).observe(box, {attributes: true, childList: true, characterData: true, subtree: true});
+        }"""
+    )
+    page.click("#run-button")
+    page.wait_for_function("document.getElementById('trial-state').textContent.includes('waiting')")
+    page.fill("#answer-input", "yes please")
+    page.click("#answer-button")
+    page.wait_for_function("document.getElementById('trial-state').textContent.includes('ended')")
+    assert "ended: done" in page.inner_text("#trial-state")
+    assert page.evaluate("window.litSeen") == ["SPEAK", "ASK"]
+    assert "Shall we listen" in page.inner_text("#robot")
+    assert page.locator("#userdata tr", has_text="answer").count() == 1
+
+
+def test_a_shipped_behavior_opened_and_saved_unchanged_is_byte_identical(
+    studio: Studio, page: Any
+) -> None:
+    path = studio.folder / "quiz.yaml"
+    before = path.read_bytes()
+    ready(page, studio.url)
+    page.select_option("#open-select", "quiz")
+    page.wait_for_selector('.state[data-path="INTRO"]')
+    page.wait_for_selector("#status.good")
+    page.click("#save-button")
+    page.wait_for_selector("body[data-saved='saved']")
+    assert path.read_bytes() == before
+
+    page.click("#run-button")
+    page.wait_for_function("document.getElementById('trial-state').textContent.includes('waiting')")
+    page.wait_for_selector(".state.lit")
+    page.screenshot(path=str(SCREENSHOT))
+    page.click("#stop-button")
