@@ -46,6 +46,24 @@ def one_line(error: BaseException) -> str:
     return re.sub(r" at /\S+\.rs:\d+\.?", "", text) or type(error).__name__
 
 
+_ENDPOINT = re.compile(r"[a-z][a-z0-9-]*/[^\s?#]+(\?[^#\s]*)?(#\S*)?")
+_IP_PROTOCOLS = frozenset({"tcp", "udp", "tls", "quic", "ws"})
+
+
+def check_endpoint(endpoint: str) -> str:
+    """``endpoint`` when it is a Zenoh locator (``tcp/HOST:PORT``, ``tls/...``), else one
+    line a person can act on (Zenoh's own says it through a Rust debug dump)."""
+    text = endpoint.strip()
+    ok = _ENDPOINT.fullmatch(text) is not None
+    protocol, _, address = text.partition("/")
+    if ok and protocol in _IP_PROTOCOLS:
+        port = address.split("?", 1)[0].split("#", 1)[0].rpartition(":")[2]
+        ok = port.isdigit() and int(port) <= 65535
+    if not ok:
+        raise ConfigError(f"`{endpoint}`: an endpoint is `tcp/HOST:PORT`")
+    return text
+
+
 def make_config(
     listen: Sequence[str] = (),
     connect: Sequence[str] = (),
@@ -60,6 +78,8 @@ def make_config(
     else:
         config = zenoh.Config()
         config.insert_json5("mode", json.dumps("peer"))
+    listen = [check_endpoint(endpoint) for endpoint in listen]
+    connect = [check_endpoint(endpoint) for endpoint in connect]
     try:
         if listen:
             config.insert_json5("listen/endpoints", json.dumps(list(listen)))

@@ -86,8 +86,9 @@ class JsonFormatter(logging.Formatter):
 
 
 OWN_PACKAGES = frozenset({"dms", "memory", "agenda", "activities", "managers", "motivation", "sim"})
-"""Loggers whose info lines are the daemon's own; other libraries' (alembic, zenoh) are
-written from WARNING up, unless the level is debug."""
+"""Loggers whose info and debug lines are the daemon's own; other libraries' (alembic,
+zenoh) are written from WARNING up, at every level: ``--log-level debug`` is for the
+daemon's decisions about its inputs, storage and bus, not for its libraries' chatter."""
 
 
 class _Quiet(logging.Filter):
@@ -122,13 +123,17 @@ def setup_logging(
     handler set before, so that calling it twice does not write each line twice."""
     handler = logging.StreamHandler(stream if stream is not None else sys.stderr)
     handler.setFormatter(JsonFormatter() if LogFormat(fmt) is LogFormat.json else TextFormatter())
-    if LogLevel(level) is not LogLevel.debug:
-        handler.addFilter(_Quiet())
+    handler.addFilter(_Quiet())
     if stamp:
         handler.addFilter(_Stamp(stamp))
     root = logging.getLogger()
     for old in list(root.handlers):
         root.removeHandler(old)
     root.addHandler(handler)
-    root.setLevel(LogLevel(level).value.upper())
+    wanted = logging.getLevelName(LogLevel(level).value.upper())
+    # Other libraries' records below WARNING are not even made (the filter is the guard
+    # for a library that sets its own logger's level).
+    root.setLevel(max(wanted, logging.WARNING))
+    for package in OWN_PACKAGES:
+        logging.getLogger(package).setLevel(wanted)
     return handler

@@ -1,4 +1,5 @@
-"""The operator's look at the bus: ``dms topics``, ``dms echo KEY``, ``dms state``.
+"""The operator's look at the bus: ``dms topics``, ``dms echo KEY``, ``dms state``, and
+``dms request ACTION`` to start, cancel, pause, resume or reload from the shell.
 
 Each opens a Zenoh session that listens nowhere and connects to ``--connect`` (the
 daemon's default endpoint when none is given) or to the endpoints of ``--zenoh-config``;
@@ -9,6 +10,7 @@ from __future__ import annotations
 
 import json
 import queue
+import re
 import signal
 import sys
 import threading
@@ -17,14 +19,14 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from types import FrameType
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import typer
 
 from dms.kernel import keys
 from dms.kernel.errors import ConfigError
 
-RobotIdOption = Annotated[str, typer.Option("--robot-id", help="Robot id.")]
+RobotIdOption = Annotated[str, typer.Option("--robot", "--robot-id", help="Robot id.")]
 ConnectOption = Annotated[
     list[str] | None,
     typer.Option(
@@ -42,15 +44,22 @@ class NothingSeen(ConfigError):
 
 def _robot(robot_id: str) -> str:
     if not keys.ROBOT_ID_RE.match(robot_id):
-        raise ConfigError(f"--robot-id: {robot_id!r} does not match [a-z0-9_-]+")
+        raise ConfigError(f"--robot: {robot_id!r} does not match [a-z0-9_-]+")
     return robot_id
 
 
 @contextmanager
-def _client(robot_id: str, connect: list[str] | None, zenoh_config: Path | None) -> Iterator[Any]:
-    from dms.bus import ZenohClient, make_client_config
+def _client(
+    robot_id: str,
+    connect: list[str] | None,
+    zenoh_config: Path | None,
+    timeout_s: float | None = None,
+) -> Iterator[Any]:
+    """A client session; ``timeout_s`` bounds the wait for its endpoints (default 5 s)."""
+    from dms.bus import TOOL_CONNECT_TIMEOUT_S, ZenohClient, make_client_config
 
-    config = make_client_config(connect or (), zenoh_config)
+    wait = TOOL_CONNECT_TIMEOUT_S if timeout_s is None else max(0.1, timeout_s)
+    config = make_client_config(connect or (), zenoh_config, timeout_s=wait)
     with ZenohClient(_robot(robot_id), config) as client:
         yield client
 
@@ -72,12 +81,16 @@ def _stop_on_signals() -> Iterator[threading.Event]:
 
 
 def absolute_key(robot_id: str, key: str) -> str:
-    """``KEY`` as given (``robots/...``) or under the robot (``dms/state``), checked."""
+    """``KEY`` absolute (``robots/mini/dms/state``) or under the robot (``dms/state``), with
+    or without a leading ``/`` (as Foxglove and ROS name topics), checked."""
     from dms.bus import check_key_expr
 
-    key = key.strip()
-    whole = key if key.startswith("robots/") else keys.absolute(robot_id, key.lstrip("/"))
+    key = key.strip().lstrip("/")
+    whole = key if key.startswith(ROBOTS_PREFIX) else keys.absolute(robot_id, key)
     return check_key_expr(whole)
+
+
+ROBOTS_PREFIX = "robots/"
 
 
 def _decode(raw: bytes) -> tuple[bool, Any]:
@@ -168,6 +181,10 @@ def _format_message(key: str, raw: bytes, when: float, as_json: bool) -> str:
 
 
 def topics_command(
+    key: Annotated[
+        str,
+        typer.Argument(help="Only the keys matching this (dms/**, /robots/mini/perception/*)."),
+    ] = "**",
     duration: Annotated[
         float, typer.Option(min=0.1, help="How long to listen for messages, in seconds.")
     ] = 2.0,
@@ -183,17 +200,19 @@ def topics_command(
     """
     robot = _robot(robot_id)
     prefix = keys.absolute(robot, "")
+    expr = absolute_key(robot, key)
     counts: dict[str, list[int]] = {}
     lock = threading.Lock()
 
     def on_sample(full_key: str, raw: bytes) -> None:
         with lock:
-            entry = counts.setdefault(full_key[len(prefix) :], [0, 0])
+            shown = full_key[len(prefix) :] if full_key.startswith(prefix) else full_key
+            entry = counts.setdefault(shown, [0, 0])
             entry[0] += 1
             entry[1] += len(raw)
 
     with _stop_on_signals() as stop, _client(robot, connect, zenoh_config) as client:
-        client.subscribe_raw(prefix + "**", on_sample)
+        client.subscribe_raw(expr, on_sample)
         tokens = [t[len(prefix) :] for t in client.tokens(prefix + keys.ALIVE_PREFIX + "**")]
         started = time.monotonic()
         stop.wait(duration)
@@ -313,3 +332,196 @@ def _number(value: Any) -> str:
     if isinstance(value, bool) or not isinstance(value, int | float):
         return "-"
     return f"{value:.1f}"
+
+
+# ---------------------------------------------------------------------- dms request
+
+RequestVerb = Literal["start", "cancel", "pause", "resume", "reload"]
+
+RELOAD_ERROR_KEYS = frozenset({"rules", "behaviors", "reload"})
+"""The ``dms/errors`` keys of a reload that kept the old version (docs/contract.md)."""
+
+
+class Refused(ConfigError):
+    """The daemon answered the request on ``dms/errors`` instead of with a decision."""
+
+
+def request_command(
+    action: Annotated[
+        RequestVerb,
+        typer.Argument(help="start ACTIVITY, cancel, pause, resume, or reload (rules, behaviors)."),
+    ],
+    activity: Annotated[
+        str | None,
+        typer.Argument(help="The activity to start (with cancel: only if it is the one running)."),
+    ] = None,
+    by: Annotated[
+        str, typer.Option(help="Who asks: the decision's detail names it (requested by NAME).")
+    ] = "cli",
+    timeout: Annotated[
+        float, typer.Option(min=0.1, help="How long to wait for the daemon's answer, in seconds.")
+    ] = 5.0,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print the decisions as JSON, one a line.")
+    ] = False,
+    robot_id: RobotIdOption = "mini",
+    connect: ConnectOption = None,
+    zenoh_config: ZenohConfigOption = None,
+) -> None:
+    """Ask the daemon to start, cancel, pause or resume an activity, or to reload, and
+    print the decision that answers (exit 1 when none comes within --timeout).
+
+    The answer: the decision naming it (requested by NAME), or a refusal on dms/errors.
+    """
+    robot = _robot(robot_id)
+    payload = build_request(action, activity, by)
+    deadline = time.monotonic() + timeout
+    inbox: queue.Queue[tuple[str, Any]] = queue.Queue()
+    with _client(robot, connect, zenoh_config, timeout) as client:
+        for key in (keys.DMS_DECISION, keys.DMS_ERRORS, keys.DMS_STATE):
+            client.subscribe(key, lambda k, body: inbox.put((k, body)))
+        if not client.wait_alive(keys.ALIVE_DMS, max(0.0, deadline - time.monotonic())):
+            raise NothingSeen(
+                f"no daemon for robot {robot}: robots/{robot}/{keys.ALIVE_DMS} not seen within"
+                f" {timeout:g} s (is it running with --robot-id {robot}?)"
+            )
+        before = _current_state(client, deadline)
+        if action == "start" and _running(before) == activity:
+            _write(f"{activity} already runs: nothing to do")
+            return
+        client.publish(keys.REQUEST, payload)
+        answer = RequestAnswer(action, activity, by, _reloads(before))
+        while (left := deadline - time.monotonic()) > 0:
+            try:
+                key, body = inbox.get(timeout=min(0.2, left))
+            except queue.Empty:
+                continue
+            if answer.take(key, body, as_json):
+                return
+    raise NothingSeen(
+        f"no answer to {action}{' ' + activity if activity else ''} from robot {robot}"
+        f" within {timeout:g} s"
+    )
+
+
+def build_request(action: str, activity: str | None, by: str) -> dict[str, Any]:
+    """The ``request`` payload (docs/contract.md), checked here so that a typo is said at
+    once rather than on the daemon's ``dms/errors``."""
+    from difflib import get_close_matches
+
+    from pydantic import ValidationError
+
+    from dms.kernel.activity_names import ACTIVITIES
+    from dms.kernel.messages import Request
+
+    if action == "start" and activity is None:
+        raise ConfigError(f"start needs an activity: one of {', '.join(ACTIVITIES)}")
+    if action in ("pause", "resume", "reload") and activity is not None:
+        raise ConfigError(f"{action} takes no activity (it acts on the one running)")
+    if activity is not None and activity not in ACTIVITIES:
+        close = get_close_matches(activity, ACTIVITIES, n=1)
+        hint = f"; did you mean {close[0]}?" if close else f"; one of {', '.join(ACTIVITIES)}"
+        raise ConfigError(f"unknown activity {activity!r}{hint}")
+    wire = "reload_rules" if action == "reload" else action
+    payload = {"action": wire, "activity": activity, "by": by}
+    try:
+        Request.model_validate(payload)
+    except ValidationError as error:
+        first = error.errors(include_url=False)[0]
+        where = ".".join(str(part) for part in first["loc"])
+        raise ConfigError(f"--{where}: {first['msg'].removeprefix('Value error, ')}") from None
+    return payload if action != "reload" else {"action": wire, "by": by}
+
+
+def _current_state(client: Any, deadline: float) -> dict[str, Any]:
+    """The daemon's state just before the request ({} when it does not answer in time)."""
+    try:
+        replies = client.query(keys.DMS_STATE, timeout_s=max(0.1, deadline - time.monotonic()))
+    except ValueError:
+        return {}
+    for ok, body in replies:
+        if ok and isinstance(body, dict):
+            return body
+    return {}
+
+
+def _running(state: dict[str, Any]) -> str | None:
+    activity = state.get("activity")
+    return activity.get("name") if isinstance(activity, dict) else None
+
+
+def _reloads(state: dict[str, Any]) -> int | None:
+    reloads = state.get("reloads")
+    return reloads if isinstance(reloads, int) else None
+
+
+class RequestAnswer:
+    """Tells the daemon's answer to one request among what it publishes."""
+
+    def __init__(self, action: str, activity: str | None, by: str, reloads: int | None) -> None:
+        self.action, self.activity, self.by = action, activity, by
+        self.reloads = reloads
+        """``dms/state``'s reload count before a reload request (None: not known)."""
+
+    def take(self, key: str, body: Any, as_json: bool) -> bool:
+        """Look at one message; True once it is the final answer (printed). A refusal
+        raises :class:`Refused`."""
+        if not isinstance(body, dict):
+            return False
+        if key == keys.DMS_ERRORS:
+            self._refused(body)
+            return False
+        if key == keys.DMS_STATE:
+            return self._reloaded(body)
+        if key != keys.DMS_DECISION or not self._names_us(body):
+            return False
+        _write(json.dumps(body, ensure_ascii=False) if as_json else format_decision_line(body))
+        return self._final(body)
+
+    def _names_us(self, decision: dict[str, Any]) -> bool:
+        detail = str(decision.get("detail") or "")
+        if re.search(rf"requested by {re.escape(self.by)}\b", detail):
+            return True
+        # a start the robot could not serve, or the answer "continue" a resume gives
+        return (decision.get("action") == "fail" and decision.get("activity") == self.activity) or (
+            self.action == "resume" and decision.get("action") == "resume"
+        )
+
+    def _final(self, decision: dict[str, Any]) -> bool:
+        done = decision.get("action")
+        if self.action == "start":
+            if done == "fail" and decision.get("activity") == self.activity:
+                raise Refused(f"{self.activity} did not start: {decision.get('detail')}")
+            return done == "start" and decision.get("activity") == self.activity
+        return done == self.action
+
+    def _refused(self, report: dict[str, Any]) -> None:
+        error, where = str(report.get("error", "")), report.get("key")
+        wire = "reload_rules" if self.action == "reload" else self.action
+        if where == keys.REQUEST and error.startswith(f"{wire} by {self.by}:"):
+            raise Refused(f"refused: {error.split(':', 1)[1].strip()}")
+        if self.action == "reload" and where in RELOAD_ERROR_KEYS:
+            raise Refused(f"reload kept the old version: {where}: {error}")
+
+    def _reloaded(self, state: dict[str, Any]) -> bool:
+        reloads = _reloads(state)
+        if self.action != "reload" or reloads is None:
+            return False
+        if self.reloads is None:
+            self.reloads = reloads
+            return False
+        if reloads > self.reloads:
+            _write(f"reloaded: rules and behaviors in force (reload {reloads})")
+            return True
+        return False
+
+
+def format_decision_line(decision: dict[str, Any]) -> str:
+    """A decision as the daemon's console prints it: time, action, activity, reason, who."""
+    from dms.kernel.ids import printable  # here: dms.kernel.ids loads pydantic, --help must not
+
+    who = f" by {decision['chosen_by']}" if decision.get("chosen_by") else ""
+    what = f" {decision['activity']}" if decision.get("activity") else ""
+    detail = f" ({printable(str(decision['detail']))})" if decision.get("detail") else ""
+    when = str(decision.get("time", ""))[11:23]
+    return f"{when} {decision.get('action', '?'):<8}{what} [{decision.get('reason')}{who}]{detail}"

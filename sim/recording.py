@@ -2,11 +2,11 @@
 
 :class:`McapRecorder` writes every sample under ``robots/<id>/**`` as a JSON message
 on a channel named by its key, with the JSON Schema of the message when the key is
-one of CONTRACT.md's (so Foxglove shows typed fields). Chunks are small and
+one of docs/contract.md's (so Foxglove shows typed fields). Chunks are small and
 zstd-compressed and the file is flushed after each chunk: a recording cut short (the
 recorder killed, the disk full, a copy interrupted) loses at most its last chunk, and
 :func:`read_recording` reads every complete record before the cut and says where it
-ended.
+ended, and :func:`play` publishes what it read at the recorded pace (``dms record play``).
 
 What the replay needs besides the messages is stored once, when the daemon answers
 ``dms/config`` (:meth:`McapRecorder.add_config`): the seed, the versions and the
@@ -21,7 +21,8 @@ import hashlib
 import json
 import struct
 import threading
-from collections.abc import Callable
+import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -353,16 +354,52 @@ def record_until(
     clock_ns: Callable[[], int],
     stop: threading.Event,
     duration_s: float | None,
+    key_exprs: Sequence[str] = (),
 ) -> RecordStats:
-    """Subscribe to the robot's key space and record until ``stop`` or ``duration_s``."""
+    """Subscribe to ``key_exprs`` (by default the robot's whole key space) and record
+    until ``stop`` or ``duration_s``."""
 
     def on_sample(topic: str, payload: bytes) -> None:
         recorder.write(topic, payload, clock_ns())
 
-    subscribe(f"robots/{recorder.robot_id}/**", on_sample)
+    for key_expr in key_exprs or [f"robots/{recorder.robot_id}/**"]:
+        subscribe(key_expr, on_sample)
     stop.wait(duration_s)
     recorder.close()
     return recorder.stats
+
+
+def play(
+    messages: Sequence[RecordedMessage],
+    publish: Callable[[RecordedMessage], None],
+    stop: threading.Event,
+    rate: float = 1.0,
+    loop: bool = False,
+    clock: Callable[[], float] = time.monotonic,
+) -> int:
+    """Publish ``messages`` at their recorded pace (``rate`` times faster), again from the
+    start when ``loop``, until the last one or ``stop``; returns how many were published.
+
+    Each message is due at the start plus its recorded offset, a deadline on ``clock``
+    (not a sleep after each one: a slow publish does not delay the rest)."""
+    if rate <= 0:
+        raise ValueError("rate must be > 0")
+    published = 0
+    while messages and not stop.is_set():
+        first_ns = messages[0].log_time_ns
+        start = clock()
+        for message in messages:
+            due = start + (message.log_time_ns - first_ns) / 1e9 / rate
+            wait = due - clock()
+            if wait > 0 and stop.wait(wait):
+                return published
+            if stop.is_set():
+                return published
+            publish(message)
+            published += 1
+        if not loop:
+            break
+    return published
 
 
 def recording_info(path: Path) -> dict[str, Any]:

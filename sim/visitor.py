@@ -13,6 +13,7 @@ real clock: this is what ``make run`` shows.
 from __future__ import annotations
 
 import contextlib
+import logging
 import random
 import sys
 import threading
@@ -29,6 +30,8 @@ from dms.kernel.clock import Clock, RealClock
 from dms.kernel.messages import Decision, RobotCommand, ScreenChoice, Speech, Touch
 from sim.persona import Persona, load_persona
 from sim.user import Output, SimulatedUser
+
+log = logging.getLogger(__name__)
 
 PERCEPTION_PERIOD_S = 0.5
 POLL_S = 0.05
@@ -134,6 +137,9 @@ def start_visitor(persona_name: str, settings: Settings) -> Callable[[], None]:
     client = ZenohClient(settings.robot_id, make_config(connect=settings.zenoh.listen))
 
     def echo(line: str) -> None:
+        if settings.log_format == "json":  # every stderr line a JSON object, as the log's
+            log.info(line.strip(), extra={"event": "visitor", "persona": persona.name})
+            return
         with contextlib.suppress(OSError, ValueError):  # a closed console never stops the visitor
             print(line, file=sys.stderr, flush=True)
 

@@ -150,5 +150,5 @@ def test_record_refusals_are_one_line(tmp_path: Path) -> None:
     missing = dms("record", "info", str(tmp_path / "absent.mcap"))
     assert missing.returncode == 1 and missing.stderr.startswith("dms: ")
     assert len(missing.stderr.strip().splitlines()) == 1
-    no_out = dms("record", "--duration", "1")
-    assert no_out.returncode == 2 and "--out" in no_out.stderr
+    bad_key = dms("record", "--key", "dms/a?b", "--duration", "1")
+    assert bad_key.returncode == 1 and bad_key.stderr.startswith("dms: "), bad_key.stderr

@@ -237,7 +237,7 @@ def test_bad_input_is_one_line_and_nonzero(daemon: tuple[DaemonProcess, zenoh.Se
     _one_line_refusal(quiet, "no message on", after="dms: echoing robots/nobody/dms/state")
     _one_line_refusal(_run("topics", "--duration", "0.5", *other), "nothing under robots/nobody/")
     _one_line_refusal(_run("echo", "dms//state", *_connect(process)), "bad key expression")
-    _one_line_refusal(_run("state", "--robot-id", "Mini!"), "--robot-id")
+    _one_line_refusal(_run("state", "--robot-id", "Mini!"), "--robot: 'Mini!'")
     nowhere = ["--connect", f"tcp/127.0.0.1:{free_port()}"]
     _one_line_refusal(_run("state", *nowhere), "cannot open the Zenoh session")
 
