@@ -11,14 +11,7 @@ from __future__ import annotations
 
 import http.client
 import json
-import os
-import queue
-import re
 import shutil
-import signal
-import subprocess
-import sys
-import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -29,7 +22,7 @@ from urllib.parse import urlsplit
 import pytest
 
 from activities.library import BEHAVIORS_DIR
-from tests.integration.harness import READY_TIMEOUT_S
+from tests.integration.viewer_harness import page_server
 
 
 @dataclass(frozen=True)
@@ -73,43 +66,11 @@ class Studio:
 @contextmanager
 def running_studio(folder: Path) -> Iterator[Studio]:
     """``dms studio --folder FOLDER --port 0``; stopped with SIGINT, it must exit 0."""
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "dms.cli", "studio", "--folder", str(folder), "--port", "0"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=dict(os.environ, PYTHONUNBUFFERED="1"),
-    )
-    lines: queue.Queue[str | None] = queue.Queue()
-    said: list[str] = []
-
-    def drain() -> None:
-        assert proc.stderr is not None
-        for line in proc.stderr:
-            said.append(line)
-            lines.put(line)
-        lines.put(None)
-
-    threading.Thread(target=drain, daemon=True).start()
-    try:
-        url = ""
-        while not url:
-            line = lines.get(timeout=READY_TIMEOUT_S)
-            assert line is not None, f"the studio stopped: {''.join(said)}"
-            found = re.search(r"http://\S+", line)
-            if line.startswith("dms: studio on ") and found:
-                url = found.group(0)
+    with page_server(["studio", "--folder", str(folder), "--port", "0"], "studio") as (url, _):
         parts = urlsplit(url)
         token = parts.query.removeprefix("token=")
         assert parts.hostname is not None and parts.port is not None
         yield Studio(url, parts.hostname, parts.port, token, folder)
-        proc.send_signal(signal.SIGINT)
-        assert proc.wait(20) == 0, "".join(said)
-        assert "Traceback" not in "".join(said), "".join(said)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait(10)
 
 
 def shipped_copy(tmp_path: Path) -> Path:

@@ -36,8 +36,22 @@ def running_viewer(port: int | None, *extra: str) -> Iterator[str]:
 def viewer_process(port: int | None, *extra: str) -> Iterator[tuple[str, subprocess.Popen[str]]]:
     """:func:`running_viewer`, yielding its process too (to measure it)."""
     connect = ["--connect", f"tcp/127.0.0.1:{port}"] if port is not None else []
+    with page_server(["view", *connect, "--port", "0", *extra], "viewer", r"http://\S+/") as (
+        url,
+        proc,
+    ):
+        yield url, proc
+
+
+@contextmanager
+def page_server(
+    args: list[str], name: str, url_pattern: str = r"http://\S+"
+) -> Iterator[tuple[str, subprocess.Popen[str]]]:
+    """``dms ARGS...`` serving a page (the viewer, the studio): yields the URL its
+    ``dms: NAME on URL`` line gives, and the process. Stopped with SIGINT, it must exit
+    0 without a traceback."""
     proc = subprocess.Popen(
-        [sys.executable, "-m", "dms.cli", "view", *connect, "--port", "0", *extra],
+        [sys.executable, "-m", "dms.cli", *args],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
@@ -55,7 +69,7 @@ def viewer_process(port: int | None, *extra: str) -> Iterator[tuple[str, subproc
 
     threading.Thread(target=drain, daemon=True).start()
     try:
-        url = _served_url(lines, said)
+        url = _served_url(lines, said, name, url_pattern)
         yield url, proc
         proc.send_signal(signal.SIGINT)
         assert proc.wait(20) == 0, "".join(said)
@@ -66,16 +80,18 @@ def viewer_process(port: int | None, *extra: str) -> Iterator[tuple[str, subproc
             proc.wait(10)
 
 
-def _served_url(lines: queue.Queue[str | None], said: list[str]) -> str:
+def _served_url(
+    lines: queue.Queue[str | None], said: list[str], name: str, url_pattern: str
+) -> str:
     while True:
         try:
             line = lines.get(timeout=READY_TIMEOUT_S)
         except queue.Empty:
-            raise AssertionError(f"the viewer never served: {''.join(said)}") from None
+            raise AssertionError(f"the {name} never served: {''.join(said)}") from None
         if line is None:
-            raise AssertionError(f"the viewer stopped: {''.join(said)}")
-        found = re.search(r"http://\S+/", line)
-        if line.startswith("dms: viewer on ") and found:
+            raise AssertionError(f"the {name} stopped: {''.join(said)}")
+        found = re.search(url_pattern, line)
+        if line.startswith(f"dms: {name} on ") and found:
             return found.group(0)
 
 
