@@ -157,7 +157,7 @@ def test_a_reload_and_missed_ticks_are_logged(tmp_path: Path) -> None:
         before = len(process.lines())
         process.proc.send_signal(signal.SIGSTOP)
         try:
-            time.sleep(1.6)
+            time.sleep(1.6)  # ok-sleep: the frozen process misses ticks for this long
         finally:
             process.proc.send_signal(signal.SIGCONT)
         missed = process.wait_line(lambda line: "event=missed_ticks" in line, start=before)

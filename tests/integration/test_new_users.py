@@ -50,7 +50,7 @@ def _wait_users(db: Path, expected: list[str], timeout: float = 20.0) -> None:
     deadline = time.monotonic() + timeout
     while (found := _users(db)) != expected:
         assert time.monotonic() < deadline, f"users {found}, not {expected}"
-        time.sleep(0.1)
+        time.sleep(0.1)  # ok-sleep: polls a file another process writes, to a deadline
 
 
 def _ready(user_id: str) -> dict[str, object]:
