@@ -3,16 +3,28 @@
 ``dms ros2`` runs this in the bridge's own environment. By default the node configures
 and activates itself; ``--unconfigured`` leaves that to a lifecycle manager (a launch
 file, ``ros2 lifecycle set``). Arguments after ``--ros-args`` are ROS 2's own.
+
+SIGINT and SIGTERM are this module's, not rclpy's: rclpy's handler wakes the executor and
+only then shuts the context down from another thread, so an executor that woke in
+between either waits again with nothing left to wake it (a node with no timer, as after
+``cleanup``, never exits) or builds its next wait set on a dead context (``RCLError``,
+exit 1). Here a signal only sets a flag, the executor spins in slices short enough to
+see it, and the node is stopped in order from the main thread, in any lifecycle state.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
+import threading
 from pathlib import Path
 
 DEFAULT_CONNECT = "tcp/127.0.0.1:7447"
+SPIN_SLICE_S = 0.1
+"""The longest the executor waits before it looks at the stop flag again: how late a
+SIGTERM is seen at worst."""
 
 
 def parse(argv: list[str]) -> argparse.Namespace:
@@ -37,9 +49,18 @@ def parse(argv: list[str]) -> argparse.Namespace:
 
 
 def main(argv: list[str] | None = None) -> int:
+    stop = threading.Event()
+
+    def ask_to_stop(signum: int, frame: object) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGINT, ask_to_stop)
+    signal.signal(signal.SIGTERM, ask_to_stop)
+
     import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.executors import SingleThreadedExecutor
     from rclpy.lifecycle import TransitionCallbackReturn
+    from rclpy.signals import SignalHandlerOptions
     from rclpy.utilities import remove_ros_args
 
     from dms_ros2 import topics
@@ -54,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
         )
         return 2
     connect = args.connect or ([] if args.zenoh_config else [DEFAULT_CONNECT])
-    rclpy.init(args=full)
+    rclpy.init(args=full, signal_handler_options=SignalHandlerOptions.NO)
     bridge = Bridge(args.robot, connect, args.zenoh_config)
     try:
         if not args.unconfigured:
@@ -64,9 +85,8 @@ def main(argv: list[str] | None = None) -> int:
             bridge.trigger_activate()
         executor = SingleThreadedExecutor()
         executor.add_node(bridge)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        while not stop.is_set():
+            executor.spin_once(timeout_sec=SPIN_SLICE_S)
     finally:
         for step in (bridge.close_zenoh, bridge.destroy_node, rclpy.try_shutdown):
             try:
@@ -80,6 +100,6 @@ if __name__ == "__main__":
     code = main()
     sys.stdout.flush()
     sys.stderr.flush()
-    # Fast DDS's and Zenoh's native threads outlive the node; once it has stopped cleanly,
-    # the interpreter's own teardown of them once turned a SIGTERM into exit 1 in CI.
+    # Fast DDS's and Zenoh's native threads outlive the node: once it has stopped, leaving
+    # without the interpreter's teardown keeps them from delaying or changing the status.
     os._exit(code)

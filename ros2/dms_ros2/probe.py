@@ -11,7 +11,14 @@ Each line on stdin is an order; each line on stdout an event, every one stamped 
 - ``{"op": "robot", "namespace"}``: act as the robot: answer each ``robot/command``
   with ``robot/feedback`` ``started`` then ``done`` (an ``interrupt`` command with
   ``interrupted`` for its target).
+- ``{"op": "get_state", "node"}``: ask a managed node its lifecycle state through its
+  ``get_state`` service; ``{"event": "state", "node", "state": "unconfigured", "t"}``.
+- ``{"op": "change_state", "node", "transition"}``: ask it for a transition by label
+  (``configure``, ``activate``, ``deactivate``, ``cleanup``...) through its
+  ``change_state`` service; ``{"event": "transition", "node", "transition", "success", "t"}``.
 - ``{"op": "quit"}``.
+
+A service is called once it is there, as a message is published once a subscriber is.
 
 ``type`` is ``pkg/msg/Name``; ``qos`` is ``events`` (reliable, keep last 50; the
 default), ``latched`` (reliable, transient local, keep last 1) or ``sensor`` (best effort).
@@ -27,6 +34,7 @@ import sys
 import threading
 import time
 from array import array
+from collections.abc import Callable
 from typing import Any
 
 import rclpy
@@ -34,6 +42,9 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 MATCH_TIMEOUT_S = 60.0
+
+Reply = Callable[[Any], dict[str, Any]]
+"""Turns a service's response into the event the probe prints."""
 
 
 def qos_of(name: str) -> QoSProfile:
@@ -86,6 +97,9 @@ class Probe:
         self.publishers: dict[str, Any] = {}
         self.waiting: list[tuple[float, str, Any]] = []
         self.keep: list[Any] = []
+        self.clients: dict[str, Any] = {}
+        self.calls: list[tuple[float, str, Any, Reply]] = []
+        self.pending: list[tuple[Any, Reply]] = []
 
     def order(self, order: dict[str, Any]) -> bool:
         op = order.get("op")
@@ -107,6 +121,10 @@ class Probe:
             self.waiting.append((time.monotonic() + MATCH_TIMEOUT_S, order["topic"], message))
         elif op == "robot":
             self.act_as_robot(order["namespace"])
+        elif op == "get_state":
+            self.get_state(order["node"])
+        elif op == "change_state":
+            self.change_state(order["node"], order["transition"])
         elif op == "quit":
             return False
         return True
@@ -130,6 +148,50 @@ class Probe:
             publisher.publish(message)
             say({"event": "published", "topic": topic})
         self.waiting = still
+
+    def get_state(self, node: str) -> None:
+        kind = type_of("lifecycle_msgs/srv/GetState")
+
+        def reply(response: Any) -> dict[str, Any]:
+            return {"event": "state", "node": node, "state": response.current_state.label}
+
+        self.call(f"{node}/get_state", kind, kind.Request(), reply)
+
+    def change_state(self, node: str, transition: str) -> None:
+        kind = type_of("lifecycle_msgs/srv/ChangeState")
+        request = kind.Request()
+        request.transition.label = transition
+
+        def reply(response: Any) -> dict[str, Any]:
+            return {
+                "event": "transition",
+                "node": node,
+                "transition": transition,
+                "success": response.success,
+            }
+
+        self.call(f"{node}/change_state", kind, request, reply)
+
+    def call(self, service: str, kind: Any, request: Any, reply: Reply) -> None:
+        if service not in self.clients:
+            self.clients[service] = self.node.create_client(kind, service)
+        self.calls.append((time.monotonic() + MATCH_TIMEOUT_S, service, request, reply))
+
+    def serve(self) -> None:
+        """Call each service once it is there; print each response that came."""
+        waiting: list[tuple[float, str, Any, Reply]] = []
+        for deadline, service, request, reply in self.calls:
+            if self.clients[service].service_is_ready():
+                self.pending.append((self.clients[service].call_async(request), reply))
+            elif time.monotonic() > deadline:
+                say({"event": "error", "service": service, "error": "no such service"})
+            else:
+                waiting.append((deadline, service, request, reply))
+        self.calls = waiting
+        for future, reply in self.pending:
+            if future.done():
+                say(reply(future.result()))
+        self.pending = [(future, reply) for future, reply in self.pending if not future.done()]
 
     def act_as_robot(self, namespace: str) -> None:
         from std_msgs.msg import String
@@ -173,6 +235,7 @@ def main() -> int:
         while running:
             rclpy.spin_once(probe.node, timeout_sec=0.01)
             probe.flush()
+            probe.serve()
             while running and not orders.empty():
                 order = orders.get()
                 running = order is not None and probe.order(order)

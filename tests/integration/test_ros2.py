@@ -5,7 +5,8 @@ here as ``dms ros2 --prepare`` makes it); the ROS 2 side of each test is
 ``dms_ros2.probe``, a plain rclpy node in that environment driven by JSON lines. Fast
 DDS keeps to loopback (the profile ``ros2/loopback_fastdds.xml``: UDP on 127.0.0.1 and
 shared memory, a test asserts it from the processes' sockets) in a domain of the test's
-own; Zenoh runs on 127.0.0.1. Every wait is for a message, with a deadline.
+own; Zenoh runs on 127.0.0.1. Every wait is for a message or a service's answer, with
+a deadline; only a topic's silence is watched for a set time.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import os
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -32,6 +34,9 @@ pytestmark = pytest.mark.integration
 STRING = "std_msgs/msg/String"
 WAIT_S = 60.0
 """Fast DDS discovery on loopback takes a few seconds; the margin is for a loaded CI."""
+STOP_S = 10.0
+"""How long the bridge may take to exit on SIGTERM: under 2 s unloaded, the rest is margin
+for a loaded CI (a bridge that hangs takes forever, not 11 s)."""
 _domains = itertools.count((os.getpid() % 40) * 2 + 10)
 
 
@@ -60,7 +65,8 @@ def ros_env(domain: int | None = None) -> dict[str, str]:
     """Fast DDS on loopback only, in a domain no other test uses.
 
     ``SYSTEM_DEFAULT`` leaves discovery to the profile: with ``LOCALHOST``, rmw_fastrtps
-    adds a UDP transport of its own that binds and announces every interface.
+    adds a UDP transport of its own beside it, and each process then also holds a socket
+    on 0.0.0.0 and one on the machine's address (the loopback test below would fail).
     """
     env = {name: value for name, value in os.environ.items() if name not in OVERRIDES}
     env.update(
@@ -191,6 +197,28 @@ class Probe:
         )
         return payload(event)
 
+    def quiet(self, topic: str, start: int, timeout: float) -> bool:
+        """True when no message on ``topic`` comes after event ``start`` within ``timeout``."""
+        try:
+            self.wait_for(
+                lambda e: e["event"] == "msg" and e["topic"] == topic, start, timeout=timeout
+            )
+        except AssertionError:
+            return self.proc.poll() is None  # silence, not a probe that died
+        return False
+
+    def lifecycle(self, node: str, transition: str | None = None) -> Any:
+        """The node's lifecycle state label, after asking it for ``transition`` if given
+        (through the standard ``change_state`` and ``get_state`` services)."""
+        if transition is not None:
+            mark = self.mark()
+            self.order(op="change_state", node=node, transition=transition)
+            done = self.wait_for(lambda e: e["event"] in ("transition", "error"), mark)
+            assert done.get("success") is True, done
+        mark = self.mark()
+        self.order(op="get_state", node=node)
+        return self.wait_for(lambda e: e["event"] in ("state", "error"), mark).get("state")
+
     def close(self) -> None:
         if self.proc.poll() is None:
             self.order(op="quit")
@@ -204,27 +232,44 @@ class Probe:
 class BridgeProcess:
     """``dms ros2 --robot ID --connect ...`` as a person runs it (it execs the bridge)."""
 
-    def __init__(self, port: int, env: dict[str, str], log: Path, robot: str = "mini") -> None:
+    def __init__(
+        self,
+        port: int,
+        env: dict[str, str],
+        log: Path,
+        robot: str = "mini",
+        *,
+        unconfigured: bool = False,
+    ) -> None:
         self.log = log
         self._file = log.open("w")
         endpoint = f"tcp/127.0.0.1:{port}"
+        argv = [sys.executable, "-m", "dms.cli", "ros2", "--robot", robot, "--connect", endpoint]
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "dms.cli", "ros2", "--robot", robot, "--connect", endpoint],
+            [*argv, "--unconfigured"] if unconfigured else argv,
             stdout=self._file,
             stderr=subprocess.STDOUT,
             env=env,
         )
 
-    def stop(self) -> int:
+    def stop(self, timeout: float = 20.0) -> int:
+        """SIGTERM, then the exit status; -9 when it had to be killed after ``timeout``."""
         if self.proc.poll() is None:
             self.proc.terminate()
         try:
-            code = self.proc.wait(20)
+            code = self.proc.wait(timeout)
         except subprocess.TimeoutExpired:
             self.proc.kill()
-            code = self.proc.wait(10)
+            self.proc.wait(10)
+            code = -9
         self._file.close()
         return code
+
+    def timed_stop(self) -> tuple[int, float]:
+        """SIGTERM: the exit status and how long the bridge took to exit."""
+        start = time.monotonic()
+        code = self.stop(STOP_S)
+        return code, time.monotonic() - start
 
 
 @pytest.fixture(scope="module")
@@ -393,7 +438,8 @@ def test_a_ros_node_acting_as_the_robot_runs_an_activity_to_its_end(
             if e["event"] == "msg" and e["topic"] == "/robots/mini/robot/command"
         ]
         assert any(c["channel"] == "speech" for c in commands)
-        assert bridge.stop() == 0  # SIGTERM: a clean exit
+        code, took = bridge.timed_stop()  # SIGTERM: a clean exit, at once
+        assert code == 0, (code, took, bridge.log.read_text())
         assert daemon.terminate() == 0
     finally:
         if probe is not None:
@@ -402,6 +448,87 @@ def test_a_ros_node_acting_as_the_robot_runs_an_activity_to_its_end(
             bridge.stop()
         daemon.kill()
         session.close()
+
+
+QUIET_S = 2.0
+"""How long a topic must stay silent to count as stopped: four of the daemon's 2 Hz ticks."""
+
+
+@pytest.fixture(scope="module")
+def lifecycle_setup(
+    bridge_python: Path, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[tuple[DaemonProcess, Probe, dict[str, str], Path]]:
+    """A daemon with the simulated Mini and a probe, for bridges started ``--unconfigured``."""
+    tmp = tmp_path_factory.mktemp("ros2-lifecycle")
+    daemon = DaemonProcess(tmp)
+    session = client_session(daemon.port)
+    env = ros_env()
+    probe: Probe | None = None
+    try:
+        daemon.start(session)
+        probe = Probe(bridge_python, env)
+        yield daemon, probe, env, tmp
+    finally:
+        if probe is not None:
+            probe.close()
+        daemon.kill()
+        session.close()
+
+
+def test_a_lifecycle_manager_drives_the_bridge_through_its_states(lifecycle_setup: Any) -> None:
+    """Through the standard lifecycle services, as ``ros2 lifecycle set`` does: the state
+    flows only while the node is active, and SIGTERM after cleanup exits 0 at once."""
+    daemon, probe, env, tmp = lifecycle_setup
+    node, state_topic = "/robots/mini/dms_bridge", "/robots/mini/dms/state"
+    start = probe.mark()
+    bridge = BridgeProcess(daemon.port, env, tmp / "cycle.log", unconfigured=True)
+    try:
+        probe.sub(state_topic, qos="latched")
+        assert probe.lifecycle(node) == "unconfigured"
+        assert probe.quiet(state_topic, start, QUIET_S)
+        assert probe.lifecycle(node, "configure") == "inactive"
+        mark = probe.mark()
+        assert probe.lifecycle(node, "activate") == "active"
+        first = probe.message(state_topic, start=mark)
+        probe.message(state_topic, lambda s: s["tick"] > first["tick"], start=mark)
+        assert probe.lifecycle(node, "deactivate") == "inactive"
+        assert probe.quiet(state_topic, probe.mark(), QUIET_S)
+        assert probe.lifecycle(node, "cleanup") == "unconfigured"
+        code, took = bridge.timed_stop()
+        assert code == 0, (code, took, bridge.log.read_text())
+    finally:
+        if bridge.proc.poll() is None:
+            bridge.stop()
+
+
+@pytest.mark.parametrize(
+    ("robot", "transitions", "state"),
+    [
+        ("unconfigured", (), "unconfigured"),
+        ("inactive", ("configure",), "inactive"),
+        ("active", ("configure", "activate"), "active"),
+        ("cleaned_up", ("configure", "activate", "deactivate", "cleanup"), "unconfigured"),
+        ("finalized", ("configure", "activate", "shutdown"), "finalized"),
+    ],
+)
+def test_sigterm_stops_the_bridge_cleanly_in_every_lifecycle_state(
+    lifecycle_setup: Any, robot: str, transitions: tuple[str, ...], state: str
+) -> None:
+    """A bridge of its own per state (the robot id names it, so no service of an earlier
+    one answers); the state is read back before the signal."""
+    daemon, probe, env, tmp = lifecycle_setup
+    node = f"/robots/{robot}/dms_bridge"
+    bridge = BridgeProcess(daemon.port, env, tmp / f"{robot}.log", robot, unconfigured=True)
+    try:
+        assert probe.lifecycle(node) == "unconfigured"
+        for transition in transitions:
+            probe.lifecycle(node, transition)
+        assert probe.lifecycle(node) == state
+        code, took = bridge.timed_stop()
+        assert code == 0, (code, took, bridge.log.read_text())
+    finally:
+        if bridge.proc.poll() is None:
+            bridge.stop()
 
 
 def test_rules_check_still_works_in_the_daemons_environment(bridge_python: Path) -> None:
