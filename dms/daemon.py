@@ -51,6 +51,7 @@ from dms.notify import Notifier
 from dms.rate_caps import RateCaps
 from dms.reloader import Reloader
 from dms.robot_link import ZenohRobot
+from dms.studio.daemon_try import TRY_KEY, DaemonTry
 
 log = logging.getLogger(__name__)
 
@@ -207,6 +208,8 @@ class Daemon:
         self.reloader = Reloader(
             lambda: reload_rules_and_behaviors(library, rules), self.report_error
         )
+        self.trying = DaemonTry(self.stack, self._lock, self.bus.publish, self.clock.now)
+        """A behavior tried from the studio (only while nobody is in a session)."""
 
     # -------------------------------------------------------------- bus callbacks
 
@@ -358,6 +361,7 @@ class Daemon:
             keys.DMS_BEHAVIOR: self._query_behavior,
             CONFIG_KEY: self._query_config,
             DECISIONS_KEY: self._query_decisions,
+            TRY_KEY: self.trying.serve,
         }
         self.bus.start(
             self.on_input,
@@ -392,6 +396,7 @@ class Daemon:
                 record = self.stack.controller.tick(
                     self.clock.now(), self.clock.monotonic(), urgent
                 )
+                self.trying.tick(self.clock.now())
         except Exception as error:
             log.exception("tick failed")
             self.report_error("tick", f"{type(error).__name__}: {error}; the loop goes on")

@@ -133,6 +133,10 @@ GRANTS: dict[str, tuple[Grant, ...]] = {
         Grant(
             "personal-answers", "ingress", ("reply", "declare_queryable"), ("users/**", "agenda/**")
         ),
+        # Trying a behavior from the studio on the robot (the daemon serves it only while
+        # nobody is in a session).
+        Grant("query-try", "egress", ("query",), ("studio/try",)),
+        Grant("try-answers", "ingress", ("reply", "declare_queryable"), ("studio/try",)),
         *_watch_daemon(),
     ),
 }

@@ -41,7 +41,7 @@ robot go through the expression arbiter with the activity's source; a command th
 fails or is never acknowledged fails the block (and the activity) with the reason.
 
 The blocks by what they do: :mod:`~activities.blocks.speech` (speak, ask, menu),
-:mod:`~activities.blocks.expression` (show, gesture, leds, play_media),
+:mod:`~activities.blocks.expression` (show, gesture, pose, leds, play_media),
 :mod:`~activities.blocks.waiting` (wait, wait_event), :mod:`~activities.blocks.data`
 (decide, set_param, set_data, sample, check) and :mod:`~activities.blocks.aiming`
 (look_at, point_at, attend); what they share is in :mod:`~activities.blocks.base` and
@@ -55,7 +55,7 @@ from typing import Any
 from activities.blocks.aiming import AimParams, Attend, AttendParams, LookAt, PointAt
 from activities.blocks.base import Block, Countdown
 from activities.blocks.data import Check, Decide, Sample, SetData, SetParam
-from activities.blocks.expression import Gesture, Leds, PlayMedia, Show
+from activities.blocks.expression import Gesture, Leds, PlayMedia, Pose, Show
 from activities.blocks.params import (
     BlockParams,
     Text,
@@ -74,6 +74,7 @@ BLOCKS: dict[str, type[Block[Any]]] = {
         Show,
         Menu,
         Gesture,
+        Pose,
         Leds,
         PlayMedia,
         Wait,
@@ -107,6 +108,7 @@ __all__ = [
     "Menu",
     "PlayMedia",
     "PointAt",
+    "Pose",
     "Sample",
     "SetData",
     "SetParam",

@@ -1,4 +1,4 @@
-"""The robot's other channels: the screen, gestures (toward a frame), LEDs, media."""
+"""The robot's other channels: the screen, gestures (toward a frame), poses, LEDs, media."""
 
 from __future__ import annotations
 
@@ -7,12 +7,14 @@ from typing import Any, Literal
 
 from pydantic import (
     Field,
+    field_validator,
 )
 
 from activities.blocks.base import Block
 from activities.blocks.params import BlockParams, Text
 from activities.engine import Status, Wake
 from activities.gaze import Aim, locate, send_aim
+from dms.kernel.body import JOINTS
 from dms.kernel.gaze import turn_toward
 
 
@@ -97,6 +99,61 @@ class Gesture(Block[GestureParams]):
         """Without ``toward``, this is Block's ``update``; with it, it follows a frame."""
         if self.args.toward is not None or not self.updates_as(Gesture):
             return None
+        return self.waiting_on_commands()
+
+
+Keyframe = dict[str, float]
+"""A pose: the angle (radians) of each joint named (hip, neck, head, left_arm, right_arm)."""
+
+
+class PoseParams(BlockParams):
+    keyframes: list[Keyframe] = Field(
+        min_length=1,
+        description="The poses to move through, in order: joint -> radians. The studio's "
+        "Record button takes the robot's current joints as the next keyframe.",
+    )
+
+    @field_validator("keyframes")
+    @classmethod
+    def _known_joints(cls, keyframes: list[Keyframe]) -> list[Keyframe]:
+        for index, keyframe in enumerate(keyframes):
+            unknown = sorted(set(keyframe) - set(JOINTS))
+            if unknown:
+                known = ", ".join(JOINTS)
+                raise ValueError(f"keyframe {index + 1}: no joint {unknown[0]!r} ({known})")
+        return keyframes
+
+
+class Pose(Block[PoseParams]):
+    """A gesture of one's own: each keyframe is sent as a ``motion`` ``pose`` command
+    once the one before it is over, as ROS Commander replays recorded waypoints."""
+
+    NAME = "pose"
+    DOC = "Move through recorded poses (keyframes of joint angles), one after the other."
+    PARAMS = PoseParams
+
+    def begin(self, now: datetime) -> None:
+        self.handles = []
+        self.next_keyframe = 0
+        self._send(now)
+
+    def _send(self, now: datetime) -> None:
+        keyframe = self.args.keyframes[self.next_keyframe]
+        self.next_keyframe += 1
+        self.command("motion", "pose", {"joints": dict(keyframe)}, now)
+
+    def update(self, now: datetime) -> Status:
+        error = self.command_error()
+        if error is not None:
+            return self.fail(error)
+        if not self.commands_done():
+            return Status.RUNNING
+        if self.next_keyframe < len(self.args.keyframes):
+            self._send(now)
+            return Status.RUNNING
+        return self.finish(self.OUTCOMES[0])
+
+    def wake(self, now: datetime) -> Wake | None:
         return self.waiting_on_commands()
 
 

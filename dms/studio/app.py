@@ -11,7 +11,13 @@ Every request passes the viewer's :class:`~dms.viewer.guard.HostGuard` (a foreig
 - ``POST /api/save`` ``{doc, hash}``: writes the file, or a draft (409: changed on disk);
 - ``POST /api/try/start`` ``{doc, state?}``, ``/api/try/step``, ``/api/try/answer``
   ``{text}``, ``/api/try/stop``: a trial on the simulated Mini;
-- ``GET /api/robot``: the simulated robot's joints, for the Record button.
+- ``POST /api/daemon/try`` ``{doc}``, ``GET /api/daemon/try?since=N`` (its states),
+  ``POST /api/daemon/answer`` ``{text}``, ``/api/daemon/stop``: a try on the daemon's
+  robot (``--connect``), which the daemon may refuse;
+- ``GET /api/robot?on=daemon|sim``: the robot's joints, for the Record button;
+- ``GET /api/frames``: the frames for the frame picker (the daemon's, when connected);
+- ``GET /api/rules``, ``GET /api/rules/NAME``, ``POST /api/rules/check`` ``{name, text}``,
+  ``POST /api/rules/save`` ``{name, text, hash}``: the rules pane.
 """
 
 from __future__ import annotations
@@ -33,10 +39,13 @@ from starlette.staticfiles import StaticFiles
 from dms.kernel.body import NEUTRAL
 from dms.studio.auth import TokenGuard
 from dms.studio.folder import Folder, StudioError
+from dms.studio.link import DaemonLink
 from dms.studio.palette import palette
+from dms.studio.rules import RulesFiles
 from dms.studio.trial import RobotFactory, Trial, one_state
 from dms.viewer.guard import WILDCARDS, HostGuard, allowed_hosts
 
+DEFAULT_FRAMES = ["user", "face:<id>", "object:<name>"]
 STATIC = Path(str(resources.files("dms.studio") / "static"))
 MAX_BODY = 2_000_000
 """The largest request body taken: a behavior is a few kilobytes."""
@@ -82,18 +91,31 @@ def document(data: dict[str, Any]) -> dict[str, Any]:
 
 
 class Studio:
-    """The state behind the API: the folder, and the trial running, if any."""
+    """The state behind the API: the folder, the rules files, the daemon (if connected),
+    and the trial running, if any."""
 
-    def __init__(self, folder: Folder, robot_factory: RobotFactory) -> None:
+    def __init__(
+        self,
+        folder: Folder,
+        robot_factory: RobotFactory,
+        rules: RulesFiles | None = None,
+        link: DaemonLink | None = None,
+    ) -> None:
         self.folder = folder
         self.robot_factory = robot_factory
+        self.rules = rules or RulesFiles(())
+        self.link = link
         self.trial: Trial | None = None
 
     async def palette(self, _request: Request) -> Any:
         return palette()
 
     async def behaviors(self, _request: Request) -> Any:
-        return {"folder": str(self.folder.directory), "names": self.folder.names()}
+        return {
+            "folder": str(self.folder.directory),
+            "names": self.folder.names(),
+            "daemon": self.link is not None,
+        }
 
     async def open(self, request: Request) -> Any:
         return await run_in_threadpool(self.folder.open, request.path_params["name"])
@@ -143,9 +165,74 @@ class Studio:
             await run_in_threadpool(self.trial.stop)
         return {"stopped": True}
 
-    async def robot(self, _request: Request) -> Any:
+    async def robot(self, request: Request) -> Any:
+        if request.query_params.get("on") == "daemon":
+            return {"joints": self._link().robot_joints(), "on": "daemon"}
         joints = self.trial.joints() if self.trial is not None else dict(NEUTRAL)
-        return {"joints": joints}
+        return {"joints": joints, "on": "sim"}
+
+    async def frames(self, _request: Request) -> Any:
+        if self.link is None:
+            return {"frames": DEFAULT_FRAMES, "on": "sim"}
+        seen = await run_in_threadpool(self.link.frames)
+        return {"frames": sorted({*seen, *DEFAULT_FRAMES}, key=frame_order), "on": "daemon"}
+
+    # ---------------------------------------------------------------- the daemon
+
+    def _link(self) -> DaemonLink:
+        if self.link is None:
+            raise StudioError("no daemon: start the studio with --connect ENDPOINT", 409)
+        return self.link
+
+    async def daemon_try(self, request: Request) -> Any:
+        doc = document(await body(request))
+        return await run_in_threadpool(self._link().start, doc)
+
+    async def daemon_states(self, request: Request) -> Any:
+        try:
+            since = int(request.query_params.get("since", "0"))
+        except ValueError:
+            raise StudioError("since: a number") from None
+        return {"states": self._link().states(max(since, 0))}
+
+    async def daemon_answer(self, request: Request) -> Any:
+        text = (await body(request)).get("text")
+        return await run_in_threadpool(self._link().ask, {"op": "answer", "text": text})
+
+    async def daemon_stop(self, _request: Request) -> Any:
+        return await run_in_threadpool(self._link().ask, {"op": "stop"})
+
+    # ---------------------------------------------------------------- the rules pane
+
+    async def rules_list(self, _request: Request) -> Any:
+        return {"names": self.rules.names()}
+
+    async def rules_open(self, request: Request) -> Any:
+        return await run_in_threadpool(self.rules.open, request.path_params["name"])
+
+    async def rules_check(self, request: Request) -> Any:
+        name, text = _rules_text(await body(request))
+        return await run_in_threadpool(self.rules.check, name, text)
+
+    async def rules_save(self, request: Request) -> Any:
+        data = await body(request)
+        name, text = _rules_text(data)
+        opened = data.get("hash")
+        return await run_in_threadpool(
+            self.rules.save, name, text, opened if isinstance(opened, str) else None
+        )
+
+
+def frame_order(frame: str) -> tuple[int, str]:
+    """The generic frames first, then what the daemon sees, by name."""
+    return (DEFAULT_FRAMES.index(frame) if frame in DEFAULT_FRAMES else len(DEFAULT_FRAMES), frame)
+
+
+def _rules_text(data: dict[str, Any]) -> tuple[str, str]:
+    name, text = data.get("name"), data.get("text")
+    if not isinstance(name, str) or not isinstance(text, str):
+        raise StudioError("name and text: the rules file and what the pane holds")
+    return name, text
 
 
 def create_app(
@@ -173,6 +260,15 @@ def create_app(
             Route("/api/try/answer", api(studio.try_answer), methods=["POST"]),
             Route("/api/try/stop", api(studio.try_stop), methods=["POST"]),
             Route("/api/robot", api(studio.robot)),
+            Route("/api/frames", api(studio.frames)),
+            Route("/api/daemon/try", api(studio.daemon_try), methods=["POST"]),
+            Route("/api/daemon/try", api(studio.daemon_states)),
+            Route("/api/daemon/answer", api(studio.daemon_answer), methods=["POST"]),
+            Route("/api/daemon/stop", api(studio.daemon_stop), methods=["POST"]),
+            Route("/api/rules", api(studio.rules_list)),
+            Route("/api/rules/{name}", api(studio.rules_open)),
+            Route("/api/rules/check", api(studio.rules_check), methods=["POST"]),
+            Route("/api/rules/save", api(studio.rules_save), methods=["POST"]),
             Mount("/static", StaticFiles(directory=STATIC), name="static"),
         ],
         middleware=[

@@ -2,7 +2,9 @@
 
 It prints a URL carrying the token the API asks for (as Jupyter does): open it, and
 the page keeps the token. The robot a trial drives is wired by the composition root
-(``dms/cli.py`` passes the simulated Mini), as for ``dms behavior step``.
+(``dms/cli.py`` passes the simulated Mini), as for ``dms behavior step``. With
+``--connect`` the studio also reaches a running daemon: its robot's joints for Record,
+the frames it sees, and trying a behavior on its robot.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import typer
 from dms.kernel.errors import ConfigError
 
 if TYPE_CHECKING:
+    from dms.studio.link import DaemonLink
     from dms.studio.trial import RobotFactory
 
 DEFAULT_PORT = 8090
@@ -50,6 +53,27 @@ def studio_command(
             show_default="loopback names, the --host address",
         ),
     ] = None,
+    rules: Annotated[
+        list[Path] | None,
+        typer.Option(
+            "--rules",
+            help="A DMSL rules file the rules pane edits (repeat for several).",
+            show_default="the *.dmsl files of the folder",
+        ),
+    ] = None,
+    connect: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--connect",
+            help="A running daemon's Zenoh endpoint: try on its robot, record its joints.",
+            show_default="no daemon: the simulated Mini only",
+        ),
+    ] = None,
+    zenoh_config: Annotated[
+        Path | None,
+        typer.Option(help="A Zenoh config file (a secured bus: the admin role's)."),
+    ] = None,
+    robot: Annotated[str, typer.Option("--robot", help="The daemon's robot id.")] = "mini",
 ) -> None:
     """Build, try and save behaviors with the mouse, in a web page.
 
@@ -61,6 +85,7 @@ def studio_command(
     from dms.studio.app import Studio, create_app
     from dms.studio.auth import new_token
     from dms.studio.folder import Folder
+    from dms.studio.rules import rules_files
     from dms.viewer.cli import bind
     from dms.viewer.server import serve
 
@@ -69,15 +94,37 @@ def studio_command(
     directory = (folder or BEHAVIORS_DIR).resolve()
     if not directory.is_dir():
         raise ConfigError(f"--folder {directory}: not a directory")
+    link = _connect(connect or [], zenoh_config, robot)
     sock = bind(host, port)
     try:
         address = sock.getsockname()
         token = new_token()
         shown = f"[{host}]" if ":" in host else host
         url = f"http://{shown}:{address[1]}/?token={token}"
-        studio = Studio(Folder(directory, BEHAVIORS_DIR), _robot_factory[0])
+        studio = Studio(
+            Folder(directory, BEHAVIORS_DIR),
+            _robot_factory[0],
+            rules_files(directory, rules or []),
+            link,
+        )
         app = create_app(studio, token, address[1], host, tuple(allow_host or ()))
-        ready = f"dms: studio on {url} (editing {directory}); Ctrl-C stops"
+        daemon = f", robot {robot}'s daemon" if link is not None else ""
+        ready = f"dms: studio on {url} (editing {directory}{daemon}); Ctrl-C stops"
         serve(app, sock, ready, on_exit=lambda: None)
     finally:
         sock.close()
+        if link is not None:
+            link.close()
+
+
+def _connect(connect: list[str], zenoh_config: Path | None, robot: str) -> DaemonLink | None:
+    """The link to a daemon, when one is named; None: the simulated Mini only."""
+    if not connect and zenoh_config is None:
+        return None
+    from dms.bus import ZenohClient, make_client_config
+    from dms.kernel.keys import ROBOT_ID_RE
+    from dms.studio.link import DaemonLink
+
+    if not ROBOT_ID_RE.match(robot):
+        raise ConfigError(f"--robot {robot!r}: lower-case letters, digits, _ and -")
+    return DaemonLink(ZenohClient(robot, make_client_config(connect, zenoh_config)))

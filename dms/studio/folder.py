@@ -122,9 +122,9 @@ class Folder:
         if not report.ok:
             draft = self.directory / DRAFTS / f"{name}.draft.yaml"
             draft.parent.mkdir(exist_ok=True)
-            _write(draft, text)
+            write_atomically(draft, text)
             return Saved("draft", draft, opened_hash or "", report)
-        _write(path, text)
+        write_atomically(path, text)
         (self.directory / DRAFTS / f"{name}.draft.yaml").unlink(missing_ok=True)
         return Saved("saved", path, digest(text.encode("utf-8")), report)
 
@@ -132,7 +132,7 @@ class Folder:
 NEW_FILE_MODE = 0o644
 
 
-def _write(path: Path, text: str) -> None:
+def write_atomically(path: Path, text: str) -> None:
     """Write through a temporary file in the same folder, then rename over (keeping the
     file's permissions)."""
     try:

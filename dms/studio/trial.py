@@ -5,19 +5,23 @@ step`` runs) on the document being edited, saved or not: each step goes on to th
 state and reports the state path (the page lights it), the userdata and what changed,
 the robot's commands, and what the robot shows: its last sentence, its screen and its
 joints. One state alone runs as a behavior of that one state whose outcomes end it.
+A user sits in front of the simulated Mini (the frame ``user``), so that ``look_at``,
+``point_at`` and ``attend`` turn its joints as they would toward a person.
 """
 
 from __future__ import annotations
 
 import threading
 from collections.abc import Callable, Mapping
+from datetime import datetime
 from typing import Any
 
 from activities.errors import BehaviorError
 from activities.library import BehaviorLibrary
 from activities.spec import parse_text
 from activities.stepper import BehaviorRun, Step, parse_input
-from dms.kernel.body import NEUTRAL
+from dms.kernel.body import NEUTRAL, body_frames
+from dms.kernel.frames import FrameStore, pose
 from dms.kernel.ports import RobotPort
 from dms.studio.check import WHERE, document_text, parse_message, state_outcomes, walk
 from dms.studio.folder import Folder, StudioError
@@ -28,6 +32,16 @@ simulated Mini: the application floor does not import ``sim``)."""
 MAX_S = 600.0
 """Virtual seconds one step may wait for the next state (a question times out sooner)."""
 SAID_KEPT = 6
+USER_FACE_AT = (0.8, 0.25, 0.45)
+"""Where the trial's user's face is, in metres from the robot's base: in front, a little to
+its left, at head height."""
+
+
+def seated_user(now: datetime) -> FrameStore:
+    """The body's frames and a user's face seen at ``now`` (live for the whole trial)."""
+    frames = FrameStore(body_frames(NEUTRAL))
+    frames.set("user", pose(USER_FACE_AT), stamp=now)
+    return frames
 
 
 def one_state(doc: Mapping[str, Any], path: str) -> dict[str, Any]:
@@ -62,6 +76,7 @@ class Trial:
         specs = {**folder.others(spec.name), spec.name: spec}
         self.robot = robot
         self.run = BehaviorRun(BehaviorLibrary(specs, folder.directory), spec, robot, seed=seed)
+        self.run.activity.runtime.ctx.frames = seated_user(self.run.clock.now())
         self.lock = threading.Lock()
         self.said: list[str] = []
         self.screen: dict[str, Any] = {}

@@ -132,7 +132,12 @@ def test_the_daemons_rules_give_each_role_only_its_keys(tmp_path: Path) -> None:
         "perception": set(),
         "robot": set(),
         "app": {"robots/mini/dms/**"},
-        "admin": {"robots/mini/dms/**", "robots/mini/users/**", "robots/mini/agenda/**"},
+        "admin": {
+            "robots/mini/dms/**",
+            "robots/mini/users/**",
+            "robots/mini/agenda/**",
+            "robots/mini/studio/try",
+        },
     }
     assert _allowed(conf, "robot", "egress", "put") == {"robots/mini/robot/command"}
     assert _allowed(conf, "app", "egress", "put") == {

@@ -64,9 +64,10 @@ class Studio:
 
 
 @contextmanager
-def running_studio(folder: Path) -> Iterator[Studio]:
-    """``dms studio --folder FOLDER --port 0``; stopped with SIGINT, it must exit 0."""
-    with page_server(["studio", "--folder", str(folder), "--port", "0"], "studio") as (url, _):
+def running_studio(folder: Path, extra: tuple[str, ...] = ()) -> Iterator[Studio]:
+    """``dms studio --folder FOLDER --port 0 EXTRA...``; stopped with SIGINT, it must exit 0."""
+    args = ["studio", "--folder", str(folder), "--port", "0", *extra]
+    with page_server(args, "studio") as (url, _):
         parts = urlsplit(url)
         token = parts.query.removeprefix("token=")
         assert parts.hostname is not None and parts.port is not None

@@ -29,27 +29,34 @@ pytestmark = [
 ]
 
 
-@pytest.fixture
-def studio(tmp_path: Path) -> Iterator[Studio]:
-    with running_studio(shipped_copy(tmp_path)) as running:
+@pytest.fixture(scope="module")
+def studio(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Studio]:
+    """One studio for the module: its tests touch different behaviors."""
+    with running_studio(shipped_copy(tmp_path_factory.mktemp("studio_page"))) as running:
         yield running
 
 
-@pytest.fixture
-def page(studio: Studio) -> Iterator[Any]:
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Any]:
     from playwright.sync_api import sync_playwright
 
     with sync_playwright() as playwright:
         browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
         try:
-            page = browser.new_page(viewport={"width": 1400, "height": 900})
-            errors: list[str] = []
-            page.on("pageerror", lambda error: errors.append(str(error)))
-            page.set_default_timeout(WAIT_MS)
-            yield page
-            assert not errors, errors
+            yield browser
         finally:
             browser.close()
+
+
+@pytest.fixture
+def page(studio: Studio, browser: Any) -> Iterator[Any]:
+    page = browser.new_page(viewport={"width": 1400, "height": 900})
+    errors: list[str] = []
+    page.on("pageerror", lambda error: errors.append(str(error)))
+    page.set_default_timeout(WAIT_MS)
+    yield page
+    page.close()
+    assert not errors, errors
 
 
 def ready(page: Any, url: str) -> None:

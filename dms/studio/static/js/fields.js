@@ -8,8 +8,8 @@ const UNITS = [
   [/_rad$/, "radians"],
   [/_m$/, "metres"],
 ];
-const FRAMES = ["user", "face:<id>", "object:<name>"];
-const FRAME_PARAMS = ["frame", "toward"];
+let frames = ["user", "face:<id>", "object:<name>"];
+const FRAME_PARAMS = ["frame", "toward", "attend"];
 const LONG_TEXT = ["text", "question", "description"];
 const SINGLE = /^\s*\{[A-Za-z_][\w.]*(\|[^{}]*)?\}\s*$/;
 
@@ -153,15 +153,24 @@ export function field(name, schema, value, required, onInput) {
   };
 }
 
-// The frame picker's suggestions, for look_at, point_at, attend and gestures toward.
+// The frame picker's suggestions, for look_at, point_at, attend and gestures toward:
+// the frames the daemon sees now when the studio is connected to one.
 function ensureFrames() {
-  if (document.getElementById("frames")) return;
-  const list = document.createElement("datalist");
-  list.id = "frames";
-  for (const frame of FRAMES) {
+  let list = document.getElementById("frames");
+  if (!list) {
+    list = document.createElement("datalist");
+    list.id = "frames";
+    document.body.appendChild(list);
+  }
+  list.replaceChildren();
+  for (const frame of frames) {
     const option = document.createElement("option");
     option.value = frame;
     list.appendChild(option);
   }
-  document.body.appendChild(list);
+}
+
+export function setFrames(list) {
+  frames = list;
+  ensureFrames();
 }

@@ -4,7 +4,9 @@
 import { get, post } from "./api.js";
 import { Canvas } from "./canvas.js";
 import { blockOf, Doc, nameOf, parentOf } from "./doc.js";
+import { setFrames } from "./fields.js";
 import { Props } from "./props.js";
+import { RulesPane } from "./rules.js";
 import { Trial } from "./trial.js";
 
 const CHECK_MS = 250;
@@ -210,6 +212,7 @@ async function refreshList(selectName) {
   for (const name of reply.data.names) select.appendChild(new Option(name, name));
   select.value = selectName || "";
   select.title = reply.data.folder;
+  document.querySelector('#try-on option[value="daemon"]').disabled = !reply.data.daemon;
 }
 
 async function open(name) {
@@ -247,7 +250,7 @@ function record(joints) {
   const param = POSE_PARAMS.find((name) => name in props);
   const shown = Object.entries(joints).map(([k, v]) => `${k} ${v.toFixed(2)}`).join(", ");
   if (!param) {
-    status(`recorded pose: ${shown} (the selected block takes no pose)`);
+    status(`recorded pose: ${shown} (select a pose state to keep it as a keyframe)`);
     return;
   }
   const type = (props[param].anyOf || [props[param]]).map((option) => option.type);
@@ -256,6 +259,8 @@ function record(joints) {
   app.doc.setParam(path, param, value, false);
   status(`recorded pose into ${param}: ${shown}`, "good");
 }
+
+new RulesPane();
 
 const trial = new Trial({
   doc: () => app.doc,
@@ -315,6 +320,8 @@ async function start() {
   renderPalette(reply.data.categories);
   app.top = reply.data.top;
   await refreshList("");
+  const frames = await get("/api/frames");
+  if (frames.ok) setFrames(frames.data.frames);
   setDoc(app.doc);
   const wanted = new URLSearchParams(location.search).get("open");
   if (wanted) {

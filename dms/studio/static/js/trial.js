@@ -1,12 +1,15 @@
 // Trying the behavior on the simulated Mini: run it all (a state every STEP_MS, pausing
 // at a question for the user's answer), step state by state, or run the selected state
 // alone. The active state is lit on the canvas; the userdata, what the robot says and
-// shows and its joints are shown beside it.
+// shows and its joints are shown beside it. On the daemon's robot (the studio started
+// with --connect) it runs in real time: the page asks for its states every POLL_MS.
 
 import { get, post } from "./api.js";
 import { litPaths } from "./canvas.js";
 
 const STEP_MS = 600;
+const POLL_MS = 250;
+const LIT_MIN_MS = 150; // states that came in one poll are each lit this long, in turn
 const VALUE_CHARS = 160;
 
 function h(tag, text, cls) {
@@ -22,6 +25,7 @@ export class Trial {
     this.running = false; // the run goes on by itself
     this.active = false; // a trial was started and has not finished
     this.timer = null;
+    this.seen = 0; // the daemon try's states shown so far
     const on = (id, fn) => document.getElementById(id).addEventListener("click", fn);
     on("run-button", () => this.start(null, true));
     on("step-button", () => (this.active ? this.step(false) : this.start(null, false)));
@@ -35,6 +39,10 @@ export class Trial {
     });
   }
 
+  onDaemon() {
+    return document.getElementById("try-on").value === "daemon";
+  }
+
   runState() {
     const path = this.handlers.selected();
     if (!path) {
@@ -46,6 +54,7 @@ export class Trial {
 
   async start(state, running) {
     clearTimeout(this.timer);
+    if (this.onDaemon()) return this.startOnDaemon(state);
     this.running = running;
     const body = { doc: this.handlers.doc().data };
     if (state) body.state = state;
@@ -60,8 +69,59 @@ export class Trial {
     this.show(reply.data);
   }
 
+  async startOnDaemon(state) {
+    if (state) {
+      this.handlers.status("a state alone runs on the simulated Mini only", "bad");
+      return;
+    }
+    const where = document.getElementById("trial-state");
+    where.dataset.path = "";
+    where.textContent = "starting on the daemon's robot…";
+    const reply = await post("/api/daemon/try", { doc: this.handlers.doc().data });
+    if (!reply.ok) {
+      this.handlers.status(reply.data.error, "bad");
+      document.getElementById("trial-state").textContent = "refused";
+      return;
+    }
+    this.active = true;
+    this.prefix = "";
+    this.seen = 0;
+    this.log(`trying ${reply.data.trying} on the daemon's robot`);
+    this.poll();
+  }
+
+  async poll() {
+    const reply = await get(`/api/daemon/try?since=${this.seen}`);
+    if (!reply.ok) {
+      this.handlers.status(reply.data.error, "bad");
+      return;
+    }
+    for (const [index, state] of reply.data.states.entries()) {
+      if (index) await new Promise((resolve) => setTimeout(resolve, LIT_MIN_MS));
+      this.seen += 1;
+      this.showDaemon(state);
+    }
+    if (this.active) this.timer = setTimeout(() => this.poll(), POLL_MS);
+  }
+
+  showDaemon(state) {
+    this.handlers.lit(state.finished ? new Set() : litPaths(state.path));
+    const where = document.getElementById("trial-state");
+    where.dataset.path = state.path || "";
+    const why = state.detail ? ` (${state.detail})` : "";
+    where.textContent = state.finished
+      ? `ended: ${state.outcome || state.status}${state.error ? ` (${state.error})` : why}`
+      : `on the robot  ${state.path || "-"}`;
+    if (state.finished) this.active = false;
+  }
+
   async step(running) {
     clearTimeout(this.timer);
+    if (this.onDaemon()) {
+      this.handlers.status("on the daemon's robot it runs by itself: Stop ends it", "");
+      if (this.active) this.poll();
+      return;
+    }
     this.running = running;
     const reply = await post("/api/try/step");
     if (!reply.ok) {
@@ -75,21 +135,21 @@ export class Trial {
     const input = document.getElementById("answer-input");
     const text = input.value.trim();
     if (!text || !this.active) return;
-    const reply = await post("/api/try/answer", { text });
+    const reply = await post(this.onDaemon() ? "/api/daemon/answer" : "/api/try/answer", { text });
     input.value = "";
     if (!reply.ok) {
       this.handlers.status(reply.data.error, "bad");
       return;
     }
     this.log(`answer "${text}" ${reply.data.taken ? "taken" : "not taken"}`);
-    this.step(this.running);
+    if (!this.onDaemon()) this.step(this.running);
   }
 
   async stop() {
     clearTimeout(this.timer);
     this.running = false;
     this.active = false;
-    await post("/api/try/stop");
+    await post(this.onDaemon() ? "/api/daemon/stop" : "/api/try/stop");
     this.handlers.lit(new Set());
     document.getElementById("trial-state").textContent = "stopped";
   }
@@ -151,7 +211,7 @@ export class Trial {
   }
 
   async record() {
-    const reply = await get("/api/robot");
+    const reply = await get(`/api/robot?on=${this.onDaemon() ? "daemon" : "sim"}`);
     if (!reply.ok) {
       this.handlers.status(reply.data.error, "bad");
       return;
