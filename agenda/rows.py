@@ -58,6 +58,9 @@ def prepare_schema(engine: Engine) -> None:
                 if migrations.current(connection) != head:
                     raise
         return
+    if migrations.HISTORY.newer(revision):
+        assert revision is not None
+        raise AgendaError(f"the database {migrations.HISTORY.newer_message('agenda', revision)}")
     raise AgendaError(
         f"the agenda's tables are at revision {revision or 'none'}, this dms needs "
         f"{head}: run `dms db upgrade`"

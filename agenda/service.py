@@ -63,6 +63,7 @@ from agenda.items import AgendaItem, DueItem, ItemSpec, Occurrence, Outcome, Upc
 from agenda.models import ClaimRow, ItemRow, OccurrenceRow
 from agenda.rows import Schedules, item_of, occurrence_of, one_line, prepare_schema, validate
 from agenda.schedule import from_us, to_us
+from agenda.seen import SeenUsers
 from agenda.user_data import USER_DATA
 from agenda.writer import journal_path
 from memory.db import make_engine
@@ -131,8 +132,8 @@ class Agenda:
         """
         self.claimer = claimer or f"{socket.gethostname()}-{os.getpid()}-{uuid.uuid4().hex[:8]}"
         self._claims = Claims()
-        self._seen: dict[str, int] = {}
-        """User -> when this robot last saw them (perceived, or present at ``due``)."""
+        self._seen = SeenUsers()
+        """When this robot last saw each user (perceived, or present at ``due``)."""
         self._poll_us = None if poll_s is None else round(poll_s * US_PER_S)
         self._poll_at_us: int | None = None
         self._reload_at_us: int | None = None
@@ -344,7 +345,7 @@ class Agenda:
         In the background with ``background=True``: the index is updated when the read lands.
         """
         with self._lock:
-            self._seen[user_id] = max(self._seen.get(user_id, 0), to_us(now))
+            self._seen.saw(user_id, to_us(now))
 
         def perceive() -> None:
             try:
@@ -402,8 +403,8 @@ class Agenda:
                 elif now_us >= self._poll_at_us:
                     poll = True
                     self._poll_at_us = now_us + self._poll_us
-            if present_user is not None and now_us >= self._seen.get(present_user, 0):
-                self._seen[present_user] = now_us
+            if present_user is not None:
+                self._seen.saw(present_user, now_us)
             waiting = [] if present_user is None else self._index.waiting_for(present_user)
             to_claim = [item for item in waiting if self._claims.needs_claim(item, now_us)]
             for item in to_claim:
@@ -628,7 +629,8 @@ class Agenda:
     def _saw(self, run: MissedRun) -> bool:
         """``_lock`` held: whether this robot saw the run's user since it fell due."""
         due_us = run.first_us - run.item.lead_s * US_PER_S
-        return self._seen.get(run.item.user_id, -1) >= due_us
+        seen_us = self._seen.last(run.item.user_id)
+        return seen_us is not None and seen_us >= due_us
 
     def _flush(self) -> None:
         """Write the records waiting (misses and deliveries, each with its item's new

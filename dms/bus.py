@@ -22,6 +22,7 @@ import zenoh
 
 from dms.kernel import keys
 from dms.kernel.errors import ConfigError
+from dms.rate_caps import DropTally
 
 DEFAULT_LISTEN = ("tcp/127.0.0.1:7447",)
 DEFAULT_CONNECT = "tcp/127.0.0.1:7447"
@@ -38,6 +39,14 @@ LivelinessHandler = Callable[[str, bool], None]
 """Called with (input key, alive) when a module's ``alive/<key>`` token comes or goes."""
 QueryHandler = Callable[[str, bytes | None], tuple[bool, Any]]
 """Called with (relative key, payload); returns (ok, JSON-able reply)."""
+TOKEN_INPUTS = frozenset(keys.INPUT_KEYS)
+"""The ``alive/<key>`` tokens the daemon acts on: one per input. A token on any other key
+(but ``alive/dms``) is counted in :attr:`ZenohBus.ignored_tokens` and goes no further, so
+a peer declaring thousands of distinct tokens costs a counter, never the daemon's memory.
+The inputs' own tokens are not rate-capped: a dropped withdrawal would leave a module that
+went away counted as present."""
+IGNORED_TOKENS = "alive/**"
+"""The key :attr:`ZenohBus.ignored_tokens` counts under, and its reports name."""
 
 
 def one_line(error: BaseException) -> str:
@@ -172,6 +181,8 @@ class ZenohBus:
         self._publishers: dict[str, zenoh.Publisher] = {}
         self._token: zenoh.LivelinessToken | None = None
         self._lock = threading.Lock()
+        self.ignored_tokens = DropTally()
+        """Tokens declared on keys that are no input, reported once a second with a count."""
 
     def _key(self, key: str) -> str:
         return keys.absolute(self.robot_id, key)
@@ -209,8 +220,13 @@ class ZenohBus:
 
         def on_token(sample: zenoh.Sample) -> None:
             name = str(sample.key_expr)
-            if name.startswith(alive_prefix):
-                on_liveliness(name[len(alive_prefix) :], sample.kind == zenoh.SampleKind.PUT)
+            if not name.startswith(alive_prefix):
+                return
+            key, alive = name[len(alive_prefix) :], sample.kind == zenoh.SampleKind.PUT
+            if key in TOKEN_INPUTS:
+                on_liveliness(key, alive)
+            elif alive and key != "dms":
+                self.ignored_tokens.add(IGNORED_TOKENS, latest=keys.ALIVE_PREFIX + key)
 
         self._entities.append(
             session.liveliness().declare_subscriber(self._key("alive/**"), on_token, history=True)

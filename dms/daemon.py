@@ -412,6 +412,12 @@ class Daemon:
             self.report_error(key, line)
         for key, line in self.report_caps.due_reports(monotonic):
             self.report_error(key, line)
+        for drops in self.bus.ignored_tokens.due(monotonic):
+            self.report_error(
+                drops.key,
+                f"ignored {drops.count} liveliness tokens that name no input, the latest"
+                f" {drops.latest} ({drops.total} since start)",
+            )
         bound = self.stack.inputs.max_param_names
         for drops in self.stack.inputs.params_dropped.due(monotonic):
             self.report_error(

@@ -12,6 +12,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from dms.bus import InputHandler, LivelinessHandler, QueryHandler
+from dms.rate_caps import DropTally
 
 
 class InMemoryBus:
@@ -24,6 +25,8 @@ class InMemoryBus:
         self._on_input: InputHandler | None = None
         self._on_liveliness: LivelinessHandler | None = None
         self._queries: dict[str, QueryHandler] = {}
+        self.ignored_tokens = DropTally()
+        """As :attr:`dms.bus.ZenohBus.ignored_tokens` (tests call :meth:`token` directly)."""
 
     def start(
         self,

@@ -30,6 +30,8 @@ class Drops:
     count: int
     total: int
     """Since the start."""
+    latest: str | None = None
+    """What was dropped last, when the caller names it (one of a flood of distinct keys)."""
 
 
 class DropTally:
@@ -40,12 +42,16 @@ class DropTally:
         self._lock = threading.Lock()
         self._pending: dict[str, int] = {}
         self._totals: dict[str, int] = {}
+        self._latest: dict[str, str] = {}
         self._reported = -REPORT_EVERY_S
 
-    def add(self, key: str, count: int = 1) -> None:
+    def add(self, key: str, count: int = 1, latest: str | None = None) -> None:
+        """Count ``count`` dropped on ``key``; ``latest`` names the last of them."""
         with self._lock:
             self._pending[key] = self._pending.get(key, 0) + count
             self._totals[key] = self._totals.get(key, 0) + count
+            if latest is not None:
+                self._latest[key] = latest
 
     def total(self, key: str) -> int:
         """Dropped on ``key`` since the start."""
@@ -57,7 +63,10 @@ class DropTally:
         with self._lock:
             if not self._pending or monotonic - self._reported < REPORT_EVERY_S:
                 return []
-            due = [Drops(key, count, self._totals[key]) for key, count in self._pending.items()]
+            due = [
+                Drops(key, count, self._totals[key], self._latest.get(key))
+                for key, count in self._pending.items()
+            ]
             self._pending.clear()
             self._reported = monotonic
             return due

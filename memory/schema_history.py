@@ -96,22 +96,54 @@ class SchemaHistory:
         """Read from the revision files' ``revision`` and ``down_revision`` literals; a
         history that is not one plain chain of literals (a merge, a branch, computed
         values) is left to Alembic's ScriptDirectory, which runs the files."""
+        chain = self._chain
+        if chain is None:
+            return self.alembic_head()
+        revisions, parents = chain
+        heads = revisions - parents
+        if len(heads) != 1 or not parents <= revisions:
+            return self.alembic_head()
+        return heads.pop()
+
+    @cached_property
+    def _chain(self) -> tuple[set[str], set[str]] | None:
+        """Every revision and every parent named in the revision files' literals; None
+        when a file is not plain literals (Alembic must read it)."""
         revisions: set[str] = set()
         parents: set[str] = set()
         for path in sorted((self.folder / "versions").glob("*.py")):
             values = _literals(path)
             revision, down = values.get("revision"), values.get("down_revision")
             if not isinstance(revision, str) or not (down is None or isinstance(down, str)):
-                return self.alembic_head()
+                return None
             if values.get("branch_labels") is not None or values.get("depends_on") is not None:
-                return self.alembic_head()
+                return None
             revisions.add(revision)
             if down is not None:
                 parents.add(down)
-        heads = revisions - parents
-        if len(heads) != 1 or not parents <= revisions:
-            return self.alembic_head()
-        return heads.pop()
+        return revisions, parents
+
+    def newer(self, revision: str | None) -> bool:
+        """Whether a database at ``revision`` was written by a newer dms: a revision this
+        code does not know, from which no migration here can go back."""
+        if revision is None:
+            return False
+        chain = self._chain
+        if chain is not None:
+            return revision not in chain[0]
+        from alembic.script import ScriptDirectory
+
+        script = ScriptDirectory.from_config(self.config())
+        return revision not in {known.revision for known in script.walk_revisions()}
+
+    def newer_message(self, what: str, revision: str) -> str:
+        """What ``dms run`` says of a database whose ``what`` schema is at ``revision``,
+        newer than this dms (:meth:`newer`), after the database's name: what to do instead."""
+        return (
+            f"was written by a newer version of dms ({what} schema {revision}; this dms "
+            f"knows up to {self.head()}): install that version, or point --db at another "
+            "database"
+        )
 
     def alembic_head(self) -> str:
         """The head as Alembic computes it (imports Alembic and runs the revision files)."""

@@ -70,7 +70,8 @@ class StoreDatabase:
     short transactions; :class:`memory.store.ProfileStore` builds on it.
 
     Raises:
-        ProfileError: the database cannot be opened (one-line message).
+        ProfileError: the database cannot be opened (one-line message), or a newer dms
+            wrote it.
         SchemaOutOfDate: the database needs ``dms db upgrade --db URL``.
     """
 
@@ -97,6 +98,12 @@ class StoreDatabase:
                 raise ProfileError(
                     f"cannot create the profile tables in {shown}: {one_line(error)}"
                 ) from None
+        elif migrations.HISTORY.newer(current):
+            self.engine.dispose()
+            assert current is not None
+            raise ProfileError(
+                f"database {shown} {migrations.HISTORY.newer_message('profile', current)}"
+            )
         elif current != head:
             self.engine.dispose()
             raise SchemaOutOfDate(

@@ -299,7 +299,7 @@ def test_fresh_database_is_created_at_head_and_an_old_one_is_refused(
     old = tmp_path / "old.db"
     with sqlite3.connect(old) as connection:
         connection.execute("CREATE TABLE alembic_version_agenda (version_num VARCHAR(32))")
-        connection.execute("INSERT INTO alembic_version_agenda VALUES ('agenda_0000')")
+        connection.execute("INSERT INTO alembic_version_agenda VALUES ('agenda_0001')")
     with pytest.raises(AgendaError, match="dms db upgrade"):
         Agenda(f"sqlite:///{old}")
 
