@@ -336,3 +336,14 @@ def test_the_commands_refuse_a_symlink_planted_in_the_folder(tmp_path: Path) -> 
         assert not victim.exists()
         (folder / planted).unlink()
     assert dms_secure("init", str(folder), "--robot-id", "mini", "--force").returncode == 0
+
+
+def test_only_admin_may_try_a_behavior_from_the_studio(deployment: Deployment) -> None:
+    """A studio's try moves the robot: an app, even one that forges its role, gets no
+    answer; admin gets the daemon's."""
+    for rogue in (False, True):
+        app = deployment.session("app", rogue)
+        assert _get(app, "studio/try", {"op": "frames"}) == []
+    admin = deployment.session("admin")
+    [(ok, reply)] = _get(admin, "studio/try", {"op": "frames"})
+    assert ok and isinstance(reply["frames"], list), reply
