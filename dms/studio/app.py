@@ -11,9 +11,10 @@ Every request passes the viewer's :class:`~dms.viewer.guard.HostGuard` (a foreig
 - ``POST /api/save`` ``{doc, hash}``: writes the file, or a draft (409: changed on disk);
 - ``POST /api/try/start`` ``{doc, state?}``, ``/api/try/step``, ``/api/try/answer``
   ``{text}``, ``/api/try/stop``: a trial on the simulated Mini;
-- ``POST /api/daemon/try`` ``{doc}``, ``GET /api/daemon/try?since=N`` (its states),
-  ``POST /api/daemon/answer`` ``{text}``, ``/api/daemon/stop``: a try on the daemon's
-  robot (``--connect``), which the daemon may refuse;
+- ``POST /api/daemon/try`` ``{doc, state?, step?}``, ``GET /api/daemon/try?since=N``
+  (its states), ``POST /api/daemon/step``, ``/api/daemon/answer`` ``{text}``,
+  ``/api/daemon/stop``: a try on the daemon's robot (``--connect``), which the daemon
+  may refuse;
 - ``GET /api/robot?on=daemon|sim``: the robot's joints, for the Record button;
 - ``GET /api/frames``: the frames for the frame picker (the daemon's, when connected);
 - ``GET /api/rules``, ``GET /api/rules/NAME``, ``POST /api/rules/check`` ``{name, text}``,
@@ -185,8 +186,16 @@ class Studio:
         return self.link
 
     async def daemon_try(self, request: Request) -> Any:
-        doc = document(await body(request))
-        return await run_in_threadpool(self._link().start, doc)
+        data = await body(request)
+        doc = document(data)
+        state = data.get("state")
+        if state is not None and not isinstance(state, str):
+            raise StudioError("state: the path of the state to run alone")
+        step = data.get("step") is True
+        return await run_in_threadpool(self._link().start, doc, state, step)
+
+    async def daemon_step(self, _request: Request) -> Any:
+        return await run_in_threadpool(self._link().ask, {"op": "step"})
 
     async def daemon_states(self, request: Request) -> Any:
         try:
@@ -263,6 +272,7 @@ def create_app(
             Route("/api/frames", api(studio.frames)),
             Route("/api/daemon/try", api(studio.daemon_try), methods=["POST"]),
             Route("/api/daemon/try", api(studio.daemon_states)),
+            Route("/api/daemon/step", api(studio.daemon_step), methods=["POST"]),
             Route("/api/daemon/answer", api(studio.daemon_answer), methods=["POST"]),
             Route("/api/daemon/stop", api(studio.daemon_stop), methods=["POST"]),
             Route("/api/rules", api(studio.rules_list)),

@@ -9,9 +9,16 @@ daemon's loop after the controller, beside the robot's own idling; it is cancell
 soon as a session opens. Each change of state is published on :data:`TRY_STATE_KEY` for
 the page to light.
 
-Payloads: ``{"op": "start", "doc": {...}}``, ``{"op": "answer", "text": "..."}`` (words
-said, ``screen:CHOICE``, ``touch:PART``), ``{"op": "stop"}``, ``{"op": "frames"}`` (the
-frames the daemon sees now, for the studio's frame picker).
+As on the simulated Mini (:mod:`dms.studio.trial`), a try may run one state alone (a
+behavior of that state whose outcomes end it), and may go state by state as ``dms
+behavior step`` does: it ticks until the state path changes or the behavior ends, then
+holds still (the robot's last commands go on) until the next step.
+
+Payloads: ``{"op": "start", "doc": {...}, "state": "PATH", "step": true}`` (``state`` and
+``step`` optional), ``{"op": "step"}`` (on to the next state; a running try stops at
+its next state from then on), ``{"op": "answer", "text": "..."}`` (words said,
+``screen:CHOICE``, ``touch:PART``), ``{"op": "stop"}``, ``{"op": "frames"}`` (the frames
+the daemon sees now, for the studio's frame picker).
 """
 
 from __future__ import annotations
@@ -30,6 +37,8 @@ from activities.spec import check_references, parse_text
 from activities.stepper import parse_input
 from dms.kernel.errors import DmsError
 from dms.studio.check import WHERE, document_text
+from dms.studio.folder import StudioError
+from dms.studio.trial import one_state
 
 if TYPE_CHECKING:
     from dms.assembly import Stack
@@ -65,7 +74,12 @@ class DaemonTry:
         self.publish = publish
         self.activity: Activity | None = None
         self.behavior = ""
-        self._shown: tuple[str, str] | None = None
+        self.stepping = False
+        """Stop at each new state (``step``), as ``dms behavior step`` does."""
+        self.paused = False
+        """Holding still at a state until the next ``step``."""
+        self._before = ""
+        self._shown: tuple[str, str, bool] | None = None
 
     # ---------------------------------------------------------------- the query
 
@@ -81,7 +95,11 @@ class DaemonTry:
         try:
             with self.lock:
                 if op == "start":
-                    return True, self._start(data.get("doc"))
+                    return True, self._start(
+                        data.get("doc"), data.get("state"), data.get("step") is True
+                    )
+                if op == "step":
+                    return True, self._step()
                 if op == "answer":
                     return True, self._answer(data.get("text"))
                 if op == "stop":
@@ -90,7 +108,7 @@ class DaemonTry:
                     return True, {"frames": self._frames()}
         except TryRefused as refused:
             return False, {"error": str(refused)}
-        return False, {"error": f"op {op!r}: one of start, answer, stop, frames"}
+        return False, {"error": f"op {op!r}: one of start, step, answer, stop, frames"}
 
     def _busy(self) -> str | None:
         """Why the robot is not free for a try now, or None. Only a person counts: with
@@ -100,12 +118,19 @@ class DaemonTry:
             return f"a session is open ({user}): a try waits until nobody is in a session"
         return None
 
-    def _start(self, doc: object) -> dict[str, Any]:
+    def _start(self, doc: object, state: object, step: bool) -> dict[str, Any]:
         if not isinstance(doc, dict):
             raise TryRefused("doc: the behavior, as a JSON object")
+        if state is not None and not isinstance(state, str):
+            raise TryRefused("state: the path of the state to run alone")
         busy = self._busy()
         if busy is not None:
             raise TryRefused(busy)
+        if state:
+            try:
+                doc = one_state(doc, state)
+            except StudioError as error:
+                raise TryRefused(str(error)) from None
         try:
             spec = parse_text(document_text(doc), WHERE)
         except BehaviorError as error:
@@ -122,17 +147,32 @@ class DaemonTry:
         self.activity = BehaviorLibrary(specs, library.directory).create(spec.name, context)
         self.behavior = spec.name
         self._shown = None
+        self.stepping = self.paused = step
         self.activity.start(now)
         self._report()
-        return {"trying": spec.name}
+        return {"trying": spec.name, "state": state or None, "step": step}
+
+    def _step(self) -> dict[str, Any]:
+        activity = self._running()
+        busy = self._busy()
+        if busy is not None:
+            raise TryRefused(busy)
+        self.stepping, self.paused = True, False
+        self._before = activity.state_path
+        self._report()
+        return {"from": self._before}
+
+    def _running(self) -> Activity:
+        if self.activity is None or self.activity.finished:
+            raise TryRefused("no try runs")
+        return self.activity
 
     def _answer(self, text: object) -> dict[str, Any]:
         if not isinstance(text, str):
             raise TryRefused("text: what the user says, screen:CHOICE or touch:PART")
-        if self.activity is None or self.activity.finished:
-            raise TryRefused("no try runs")
+        activity = self._running()
         event = parse_input(text)
-        return {"taken": event is not None and self.activity.deliver(event)}
+        return {"taken": event is not None and activity.deliver(event)}
 
     def _stop(self, why: str) -> dict[str, Any]:
         stopped = self.activity is not None and not self.activity.finished
@@ -147,8 +187,8 @@ class DaemonTry:
     # ---------------------------------------------------------------- the tick
 
     def tick(self, now: datetime) -> None:
-        """After the controller's tick (under the daemon's lock): go on, or give way to a
-        session that began."""
+        """After the controller's tick (under the daemon's lock): go on, hold still at a
+        state while stepping, or give way to a session that began."""
         activity = self.activity
         if activity is None or activity.finished:
             return
@@ -156,12 +196,16 @@ class DaemonTry:
         if busy is not None:
             self._cancel(now, busy.split(":", 1)[0])
             return
+        if self.paused:
+            return
         try:
             activity.tick(now)
         except Exception as error:  # a try's fault never stops the daemon's loop
             log.exception("try of %s", self.behavior)
             self._cancel(now, f"failed: {type(error).__name__}: {error}")
             return
+        if self.stepping and activity.state_path != self._before:
+            self.paused = True
         self._report()
 
     def _cancel(self, now: datetime, why: str | None = None) -> None:
@@ -176,7 +220,8 @@ class DaemonTry:
         if activity is None:
             return
         status = activity.status.value if activity.status else "running"
-        shown = (activity.state_path, status)
+        paused = self.paused and not activity.finished
+        shown = (activity.state_path, status, paused)
         if shown == self._shown and why is None:
             return
         self._shown = shown
@@ -188,6 +233,7 @@ class DaemonTry:
                 "path": activity.state_path,
                 "status": status,
                 "finished": activity.finished,
+                "paused": paused,
                 "outcome": result.outcome if result is not None else None,
                 "error": result.error if result is not None else None,
                 "detail": why,

@@ -2,9 +2,10 @@
 
 It keeps the last ``robot/joints`` the robot reported (the Record button takes them) and
 the last state of a try on the daemon (``dms/try``, lit on the canvas), and asks the
-daemon on its ``studio/try`` queryable to start, answer, stop a try or name the frames
-it sees. A refusal (a session is open, not the ``admin`` role on a secured bus) is the
-reply's one line, shown as it is.
+daemon on its ``studio/try`` queryable to start a try (the whole behavior or one state,
+running or state by state), step, answer, stop it or name the frames it sees. A refusal
+(a session is open, not the ``admin`` role on a secured bus) is the reply's one line,
+shown as it is.
 """
 
 from __future__ import annotations
@@ -58,10 +59,16 @@ class DaemonLink:
             raise StudioError(f"the daemon refused: {error}", 409)
         return body if isinstance(body, dict) else {"reply": body}
 
-    def start(self, doc: dict[str, Any]) -> dict[str, Any]:
+    def start(
+        self, doc: dict[str, Any], state: str | None = None, step: bool = False
+    ) -> dict[str, Any]:
+        """Start a try of ``doc`` (of its ``state`` alone), stopping at each state if ``step``."""
         with self.lock:
             self.try_states = []
-        return self.ask({"op": "start", "doc": doc})
+        asked: dict[str, Any] = {"op": "start", "doc": doc, "step": step}
+        if state:
+            asked["state"] = state
+        return self.ask(asked)
 
     def states(self, since: int) -> list[dict[str, Any]]:
         """The try's states published from the ``since``-th on."""

@@ -7,8 +7,10 @@ alone); a rename followed by the transitions, undone and redone; a state copied,
 and deleted. Tried on the simulated Mini with each state lit in turn, saved, and then
 the daemon reloads its folder and runs it on a ``request`` (each wait is for the
 decision or the state on the bus). The same behavior tried on the daemon's robot from
-the page (its joints recorded there too), and refused while a session is open. The rules pane shows a verifier finding
-at its line, the line `dms rules check` prints.
+the page (its joints recorded there too), and refused while a session is open. On the
+daemon's robot too, a behavior goes state by state (held at each until the next Step)
+and one state runs alone. The rules pane shows a verifier finding at its line, the line
+`dms rules check` prints.
 """
 
 from __future__ import annotations
@@ -235,6 +237,68 @@ def test_a_behavior_built_from_nothing_runs_on_the_simulated_mini_and_on_the_dae
     assert "a session is open (ann)" in page.inner_text("#status")
     put(session, "perception/user", {"present": False, "user_id": None, "ready": False})
     states.wait_for(lambda s: s["user"] is None, BUS_WAIT_S)
+
+
+STEPS = """\
+name: steps
+outcomes: [done]
+states:
+  ONE:
+    show: {text: one}
+    transitions: {done: TWO}
+  TWO:
+    show: {text: two}
+    transitions: {done: THREE}
+  THREE:
+    show: {text: three}
+    transitions: {done: done}
+"""
+
+
+def test_on_the_daemons_robot_a_behavior_goes_state_by_state_and_one_state_runs_alone(
+    bench: Bench, page: Any
+) -> None:
+    (bench.studio.folder / "steps.yaml").write_text(STEPS)
+    page.goto(f"{bench.studio.url}&open=steps")
+    page.wait_for_selector('.state[data-path="THREE"]')
+    page.select_option("#try-on", "daemon")
+    tries = Collector(bench.session, "robots/mini/dms/try")
+    commands = Collector(bench.session, "robots/mini/robot/command")
+    watch_lit(page)
+
+    page.click("#step-button")
+    for state in ("ONE", "TWO", "THREE"):
+        trial_text(page, f"{state}  (held")
+        page.click("#step-button")
+    trial_text(page, "ended: done")
+    assert page.evaluate("window.litSeen") == ["ONE", "TWO", "THREE"]
+    # held at each state: the try moved on only when asked
+    tries.wait_for(lambda t: t["finished"], BUS_WAIT_S)
+    shown = [(t["path"], t["paused"]) for t in tries.messages]
+    assert shown == [
+        ("ONE", True),
+        ("ONE", False),
+        ("TWO", True),
+        ("TWO", False),
+        ("THREE", True),
+        ("THREE", False),
+        ("", False),
+    ], shown
+
+    # One state alone: only its command goes out, and its outcome ends the try.
+    select_state(page, "TWO")
+    watch_lit(page)
+    start = tries.mark()
+    sent = commands.mark()
+    page.click("#run-state-button")
+    done = tries.wait_for(lambda t: t["finished"], BUS_WAIT_S, start)
+    assert done["outcome"] == "done" and done["behavior"] == "steps", done
+    trial_text(page, "ended: done")
+    assert page.evaluate("window.litSeen") == ["TWO"]
+    assert {t["path"] for t in tries.messages[start:]} == {"TWO", ""}
+    commands.wait_for(lambda c: c["args"].get("text") == "two", BUS_WAIT_S, sent)
+    texts = [c["args"].get("text") for c in commands.messages[sent:] if c["channel"] == "screen"]
+    assert [text for text in texts if text] == ["two"], texts
 
 
 def test_the_rules_pane_shows_the_verifiers_finding_at_its_line(bench: Bench, page: Any) -> None:

@@ -2,7 +2,8 @@
 // at a question for the user's answer), step state by state, or run the selected state
 // alone. The active state is lit on the canvas; the userdata, what the robot says and
 // shows and its joints are shown beside it. On the daemon's robot (the studio started
-// with --connect) it runs in real time: the page asks for its states every POLL_MS.
+// with --connect) it runs in real time: the page asks for its states every POLL_MS; when
+// stepping, the daemon holds still at each new state until the next Step.
 
 import { get, post } from "./api.js";
 import { litPaths } from "./canvas.js";
@@ -26,6 +27,8 @@ export class Trial {
     this.active = false; // a trial was started and has not finished
     this.timer = null;
     this.seen = 0; // the daemon try's states shown so far
+    this.polls = 0; // which daemon try the polling loop belongs to
+    this.paused = false; // the daemon's try holds still at a state, for Step
     const on = (id, fn) => document.getElementById(id).addEventListener("click", fn);
     on("run-button", () => this.start(null, true));
     on("step-button", () => (this.active ? this.step(false) : this.start(null, false)));
@@ -54,7 +57,7 @@ export class Trial {
 
   async start(state, running) {
     clearTimeout(this.timer);
-    if (this.onDaemon()) return this.startOnDaemon(state);
+    if (this.onDaemon()) return this.startOnDaemon(state, running);
     this.running = running;
     const body = { doc: this.handlers.doc().data };
     if (state) body.state = state;
@@ -69,29 +72,32 @@ export class Trial {
     this.show(reply.data);
   }
 
-  async startOnDaemon(state) {
-    if (state) {
-      this.handlers.status("a state alone runs on the simulated Mini only", "bad");
-      return;
-    }
+  async startOnDaemon(state, running) {
+    const polls = ++this.polls;
     const where = document.getElementById("trial-state");
     where.dataset.path = "";
     where.textContent = "starting on the daemon's robot…";
-    const reply = await post("/api/daemon/try", { doc: this.handlers.doc().data });
+    const body = { doc: this.handlers.doc().data, step: !running };
+    if (state) body.state = state;
+    const reply = await post("/api/daemon/try", body);
     if (!reply.ok) {
       this.handlers.status(reply.data.error, "bad");
       document.getElementById("trial-state").textContent = "refused";
       return;
     }
     this.active = true;
-    this.prefix = "";
+    this.paused = false;
+    this.prefix = state && state.includes("/") ? state.slice(0, state.lastIndexOf("/")) : "";
     this.seen = 0;
-    this.log(`trying ${reply.data.trying} on the daemon's robot`);
-    this.poll();
+    const what = state ? `the state ${state} of ${reply.data.trying}` : reply.data.trying;
+    this.log(`trying ${what} on the daemon's robot${running ? "" : ", state by state"}`);
+    this.poll(polls);
   }
 
-  async poll() {
+  async poll(polls) {
+    if (polls !== this.polls) return; // a later try polls for itself
     const reply = await get(`/api/daemon/try?since=${this.seen}`);
+    if (polls !== this.polls) return;
     if (!reply.ok) {
       this.handlers.status(reply.data.error, "bad");
       return;
@@ -101,27 +107,30 @@ export class Trial {
       this.seen += 1;
       this.showDaemon(state);
     }
-    if (this.active) this.timer = setTimeout(() => this.poll(), POLL_MS);
+    if (this.active) this.timer = setTimeout(() => this.poll(polls), POLL_MS);
   }
 
   showDaemon(state) {
-    this.handlers.lit(state.finished ? new Set() : litPaths(state.path));
+    const path = state.path && this.prefix ? `${this.prefix}/${state.path}` : state.path;
+    this.handlers.lit(state.finished ? new Set() : litPaths(path));
     const where = document.getElementById("trial-state");
-    where.dataset.path = state.path || "";
+    where.dataset.path = path || "";
     const why = state.detail ? ` (${state.detail})` : "";
+    this.paused = Boolean(state.paused);
     where.textContent = state.finished
       ? `ended: ${state.outcome || state.status}${state.error ? ` (${state.error})` : why}`
-      : `on the robot  ${state.path || "-"}`;
+      : `on the robot  ${path || "-"}${this.paused ? "  (held: Step goes on)" : ""}`;
     if (state.finished) this.active = false;
   }
 
   async step(running) {
-    clearTimeout(this.timer);
     if (this.onDaemon()) {
-      this.handlers.status("on the daemon's robot it runs by itself: Stop ends it", "");
-      if (this.active) this.poll();
+      // the polling loop goes on by itself and shows the next state when it comes
+      const reply = await post("/api/daemon/step");
+      if (!reply.ok) this.handlers.status(reply.data.error, "bad");
       return;
     }
+    clearTimeout(this.timer);
     this.running = running;
     const reply = await post("/api/try/step");
     if (!reply.ok) {
@@ -142,11 +151,12 @@ export class Trial {
       return;
     }
     this.log(`answer "${text}" ${reply.data.taken ? "taken" : "not taken"}`);
-    if (!this.onDaemon()) this.step(this.running);
+    if (!this.onDaemon() || this.paused) this.step(this.running);
   }
 
   async stop() {
     clearTimeout(this.timer);
+    this.polls += 1;
     this.running = false;
     this.active = false;
     await post(this.onDaemon() ? "/api/daemon/stop" : "/api/try/stop");
