@@ -16,9 +16,9 @@ from agenda import DueItem
 from dms.config import ControllerSettings
 from dms.controller.decisions import DecisionLog
 from dms.controller.deps import ControllerDeps, Counters
+from dms.controller.state import ActivityFacts
 from dms.kernel.activity_names import ManagerName, manager_of
 from dms.kernel.messages import (
-    ActivityState,
     ChosenBy,
     Reason,
     ScreenChoice,
@@ -162,12 +162,12 @@ class Runner:
         running = self.current
         return running is not None and self.managers[running.manager].deliver(event)
 
-    def published(self, running: Running | None) -> ActivityState | None:
+    def published(self, running: Running | None) -> ActivityFacts | None:
         """What ``dms/state`` says of ``running``, taken now (its state path moves on)."""
         if running is None:
             return None
         activity = self.managers[running.manager].activity
-        return ActivityState(
+        return ActivityFacts(
             name=running.name,
             manager=running.manager.value,
             status="paused" if running.paused else "running",

@@ -26,12 +26,12 @@ from dms.controller.drives import Drives
 from dms.controller.events import Events
 from dms.controller.running import Runner, Running
 from dms.controller.sessions import Sessions
-from dms.controller.state import TickRecord
+from dms.controller.state import TickRecord, UserFacts
 from dms.dialog import Dialog
 from dms.faults import FaultBarrier
 from dms.inputs import InputBoard
 from dms.kernel.activity_names import ManagerName
-from dms.kernel.messages import DmsState, Mode, UserState
+from dms.kernel.messages import DmsState, Mode
 from managers import Manager
 
 log = logging.getLogger(__name__)
@@ -294,14 +294,12 @@ class Controller:
     ) -> TickRecord:
         """What the controller holds at ``now``, as a record."""
         session, runner = self.sessions.session, self.runner
-        user: UserState | None = None
+        user: UserFacts | None = None
         mode: Mode = "motivation"
         if session is not None:
             proactivity = str(getattr(self.sessions.profile(), "proactivity", None) or "unknown")
             ready = self.sessions.ready_user() == session.user_id
-            user = UserState(
-                id=session.user_id, ready=ready, proactivity=proactivity, p_user=session.p_user
-            )
+            user = UserFacts(session.user_id, ready, proactivity, session.p_user)
             mode = session.mode
         snapshot = self.sessions.snapshot
         return TickRecord(
