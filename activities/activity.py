@@ -43,7 +43,12 @@ class ActivityResult:
 
 
 class Activity:
-    """One behavior instance: start, tick, pause, resume, cancel, deliver events."""
+    """One behavior instance: start, tick, pause, resume, cancel, deliver events.
+
+    Its methods take the daemon's wall time ``now`` and turn it once into the steady
+    time (``ctx.steady``): every wait, timer and limit inside, and the commands sent,
+    run on it, so that a wall clock set back or forward neither cuts nor stretches them.
+    """
 
     def __init__(
         self, name: str, root: Node, runtime: Runtime, gaze: GazeKeeper | None = None
@@ -57,6 +62,7 @@ class Activity:
         self.status: ActivityStatus | None = None
         self._result = ActivityResult()
         self.started_at: datetime | None = None
+        """When it started, on the steady clock."""
         self.ticks = 0
         self._stop_by: datetime | None = None
         self._sleep: Wake | None = None
@@ -88,25 +94,34 @@ class Activity:
             ActivityStatus.CANCELLED,
         )
 
+    def _steady(self, now: datetime) -> datetime:
+        return self.runtime.ctx.steady(now)
+
     def start(self, now: datetime) -> ActivityStatus:
         """Enter the first state and run the first tick (commands go out at once)."""
+        return self._start(self._steady(now))
+
+    def _start(self, now: datetime) -> ActivityStatus:
         if self.status is not None:
             return self.status
         self.started_at = now
         self.status = ActivityStatus.RUNNING
         self.root.reset()
         self.root.bind(self.userdata)
-        return self.tick(now)
+        return self._tick(now)
 
     def tick(self, now: datetime) -> ActivityStatus:
         """Advance the machine once; never blocks."""
+        return self._tick(self._steady(now))
+
+    def _tick(self, now: datetime) -> ActivityStatus:
         if self.status is None:
-            return self.start(now)
+            return self._start(now)
         if self.finished or self.status is ActivityStatus.PAUSED:
             return self.status
         if self._stop_by is not None and now >= self._stop_by:
             log.info("activity %s: cleanup still running at its limit, stopped", self.name)
-            self.cancel(now)
+            self._cancel(now)
             return self.status
         self.ticks += 1
         try:
@@ -146,6 +161,7 @@ class Activity:
     def pause(self, now: datetime) -> None:
         """Freeze at any depth; commands in flight are withdrawn (history keeps the state)."""
         if self.status is ActivityStatus.RUNNING:
+            now = self._steady(now)
             self.root.pause(now)
             if self.gaze is not None:
                 self.gaze.withdraw(now)
@@ -153,6 +169,9 @@ class Activity:
 
     def resume(self, now: datetime) -> None:
         """Re-enter the interrupted states; their blocks restart what they were doing."""
+        self._resume(self._steady(now))
+
+    def _resume(self, now: datetime) -> None:
         if self.status is ActivityStatus.PAUSED:
             self.status = ActivityStatus.RUNNING
             if self.gaze is not None:
@@ -169,20 +188,24 @@ class Activity:
         paused it), so it goes straight to its cleanup; an unstarted one is cancelled
         at once, and cleanup still running ``limit_s`` after the request is cut off.
         """
+        now = self._steady(now)
         if self.status is ActivityStatus.PAUSED:  # the request reaches the frozen leaves,
             self.root.preempt_active()  # which then do not restart what they said
-            self.resume(now)
+            self._resume(now)
         if self.status is not ActivityStatus.RUNNING:
-            self.cancel(now)
+            self._cancel(now)
             return ActivityStatus.CANCELLED if self.status is None else self.status
         if self._stop_by is not None:  # asked already: one request
             return self.status
         self._stop_by = now + timedelta(seconds=limit_s)
         self.root.preempt()
-        return self.tick(now)
+        return self._tick(now)
 
     def cancel(self, now: datetime) -> None:
         """Stop from outside at once: every active state, at every depth, no cleanup."""
+        self._cancel(self._steady(now))
+
+    def _cancel(self, now: datetime) -> None:
         if self.status is None:
             self.status = ActivityStatus.CANCELLED
             self._result = ActivityResult("cancelled", None, None, {})

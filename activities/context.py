@@ -5,6 +5,7 @@ from __future__ import annotations
 import random
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from datetime import datetime
 from typing import Any, Protocol
 
 from dms.kernel.expression import ExpressionArbiter
@@ -34,6 +35,10 @@ def _ignore(_name: str, _value: Any) -> None:
     return None
 
 
+def _same_time(now: datetime) -> datetime:
+    return now
+
+
 @dataclass
 class ActivityContext:
     """The daemon's side of a running activity, given to ``BehaviorLibrary.create``."""
@@ -52,3 +57,7 @@ class ActivityContext:
     ``look_at``, ``point_at`` and ``attend`` aim at. None: the robot knows no frames."""
     joints: Mapping[str, float] = field(default_factory=dict)
     """The robot's joint state now (radians), kept current by the daemon."""
+    steady: Callable[[datetime], datetime] = _same_time
+    """The daemon's wall time ``now`` on its steady clock, which the wall clock's steps do
+    not move (:class:`~dms.kernel.clock.SteadyTime`): an activity's waits, timers and
+    cleanup limit, and the commands it sends, run on it. The identity by default."""

@@ -21,6 +21,7 @@ import signal
 import threading
 from collections import deque
 from collections.abc import Callable
+from datetime import datetime
 from pathlib import Path
 from types import FrameType
 from typing import Any
@@ -33,7 +34,7 @@ from dms.config import Settings
 from dms.controller import TickRecord
 from dms.inputs import InputRejected, parse_input
 from dms.kernel import keys
-from dms.kernel.clock import Clock, RealClock, Ticker, iso
+from dms.kernel.clock import Clock, RealClock, Ticker, WallSteps, describe_step, iso
 from dms.kernel.errors import ConfigError, DmsError
 from dms.kernel.ids import InvalidIdentifier, check_identifier, printable
 from dms.kernel.messages import (
@@ -179,6 +180,8 @@ class Daemon:
             make_config(settings.zenoh.listen, settings.zenoh.connect, settings.zenoh.config_file),
         )
         self.ticker = Ticker(self.clock, settings.controller.tick_period_s)
+        self.wall_steps = WallSteps()
+        """Notices the wall clock being set, to say so once."""
         self._lock = threading.Lock()
         self.rate_caps = RateCaps(settings.inputs.rate_caps())
         self.report_caps = RateCaps(
@@ -391,18 +394,29 @@ class Daemon:
         """One tick, published; a fault the controller's own barrier missed is reported
         and the loop goes on (the state of the last good tick stands)."""
         self._report_drops()
+        now, monotonic = self.clock.now(), self.clock.monotonic()
+        self._report_wall_step(now, monotonic)
         try:
             with self._lock:
-                record = self.stack.controller.tick(
-                    self.clock.now(), self.clock.monotonic(), urgent
-                )
-                self.trying.tick(self.clock.now())
+                record = self.stack.controller.tick(now, monotonic, urgent)
+                self.trying.tick(now)
         except Exception as error:
             log.exception("tick failed")
             self.report_error("tick", f"{type(error).__name__}: {error}; the loop goes on")
             return None
         self._publish(record)
         return record
+
+    def _report_wall_step(self, now: datetime, monotonic: float) -> None:
+        """Say once that the wall clock was set; no decision depends on it (the drives and
+        the timeouts run on the monotonic clock, schedules follow the new wall time)."""
+        step = self.wall_steps.observe(now, monotonic)
+        if step is not None:
+            self.report_error(
+                "clock",
+                f"the wall clock was set {describe_step(step)} (now {iso(now)}); drives and"
+                " timeouts go on by the monotonic clock, schedules follow the wall clock",
+            )
 
     def _report_drops(self) -> None:
         """Once a second at most, what the input bounds dropped since the last report:

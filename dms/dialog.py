@@ -6,6 +6,10 @@ like it?" after an activity (step 7) and general questions that fill the profile
 (step 8). A :class:`Dialog` asks once, in the user's interaction style (voice or
 screen, which the profile switches after repeated unanswered prompts: Table 2), takes
 the first answer that arrives by speech or touch screen, and gives up after its timeout.
+
+Its times are on the controller's steady clock (the wall time with its steps taken out,
+:class:`~dms.kernel.clock.SteadyTime`): a wall clock set forward an hour while a question
+waits does not end it unanswered.
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ class Dialog:
     question: str
     choices: tuple[str, ...]
     deadline: datetime
+    """When it gives up (steady time, as every time here)."""
     context: dict[str, Any] = field(default_factory=dict)
     answer: str | None = None
     channel: str | None = None

@@ -3,7 +3,9 @@
 It implements :class:`dms.kernel.ports.RobotPort`. Every command reports ``started`` at once,
 then ``done`` when its duration has passed on the caller's clock: speech by word count
 at the speaking rate, media by ``args.duration_s``, motions from a table, screen and
-LED commands immediately. ``interrupt`` stops a command (``interrupted``).
+LED commands immediately. ``interrupt`` stops a command (``interrupted``). The
+controller's clock here is its steady time (:class:`dms.kernel.clock.SteadyTime`): a
+wall clock set back does not hold a command for the hour, nor one set forward end it.
 
 **A body.** Its five joints (:class:`sim.body.SimBody`) move at their speeds toward the
 ``joints`` a command carries: an ``aim`` command (``look_at``, ``point_at``, ``turn_to``)

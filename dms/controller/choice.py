@@ -13,6 +13,11 @@ Read this file first. The tick (``tick.py``) calls, in order:
 - :meth:`Choice.choose`: with nothing running, with no user the behavior of the dominant
   motivation (step 4); with a user, a due agenda item, now and then a general question
   (step 8), else an activity chosen by the user's proactivity (step 6).
+
+Each takes the tick's wall time ``now``: it names the decisions and what the profile
+and the agenda are told. What measures a duration (a dialog's deadline, the menu's
+timeout) reads the steady time instead (:meth:`Sessions.steady`), which a wall clock set
+back or forward does not move.
 """
 
 from __future__ import annotations
@@ -92,6 +97,8 @@ class Choice:
         comes back when it ends (see :meth:`_back_after`)."""
         self.menu_again = False
         """The reminder cut the menu: it is offered again after it."""
+        self.menu_offered: datetime | None = None
+        """When (steady time) the menu last started: ``menu_timeout_s`` counts from then."""
 
     # ------------------------------------------------------------------ steps 3 and 5: the user
 
@@ -166,8 +173,9 @@ class Choice:
         """Record a completed activity and, now and then, ask how much the user liked it."""
         counts = self.sessions.record_activity(running, "completed", now)
         if counts and ask_feedback and self.rng.random() < self.settings.feedback_probability:
+            steady = self.sessions.steady(now)
             self.dialogs.open(
-                feedback_dialog(running.name, now, self.settings.question_timeout_s), now
+                feedback_dialog(running.name, steady, self.settings.question_timeout_s), now
             )
 
     def _follow_redirect(self, running: Running, target: str, now: datetime) -> None:
@@ -266,9 +274,11 @@ class Choice:
         let the choice pass: the robot chooses next, as after "you choose".
         """
         limit = self.settings.menu_timeout_s
+        steady = self.sessions.steady(now)
+        offered = self.menu_offered or steady
         taken = self.events.taken_at
-        since = max(running.started, taken) if taken is not None else running.started
-        if running.paused or (now - since).total_seconds() < limit:
+        since = max(offered, taken) if taken is not None else offered
+        if running.paused or (steady - since).total_seconds() < limit:
             return False
         runner = self.runner
         runner.cancel(running, "user_choice", now, f"no answer in {limit:g} s")
@@ -545,6 +555,9 @@ class Choice:
         why: Why | None = None,
     ) -> bool:
         """Start ``name`` for the session's user (if any); False if it did not start."""
-        return self.runner.start(
+        started = self.runner.start(
             name, reason, chosen_by, now, self.sessions.user_id, detail, args, agenda_item, why
         )
+        if started and name == "menu":
+            self.menu_offered = self.sessions.steady(now)
+        return started

@@ -8,6 +8,9 @@ answer). One dialog is open at a time; while it is, nothing new is chosen.
 The user may ask for an activity instead of answering (the request wins, the dialog
 closes), and a reminder may fall due: the dialog is held, silent, while the reminder is
 said, then asked again (see ``choice.py``).
+
+The methods here take the tick's wall time ``now``, which names what is written (the
+answers, the decision log); a dialog's own times are steady (:meth:`Sessions.steady`).
 """
 
 from __future__ import annotations
@@ -53,7 +56,7 @@ class Dialogs:
     def open(self, dialog: Dialog, now: datetime) -> None:
         """Ask ``dialog``'s question in the user's style and note the decision to ask."""
         self.dialog = dialog
-        dialog.ask(self.expression, now, self.sessions.style())
+        dialog.ask(self.expression, self.sessions.steady(now), self.sessions.style())
         activity = dialog.context.get("activity")
         self.log.decide("ask", activity, dialog.kind.value, None, dialog.question, now)
 
@@ -65,7 +68,7 @@ class Dialogs:
                 DialogKind.GENERAL_QUESTION,
                 question.text,
                 tuple(question.choices or ()),
-                now + timedelta(seconds=self.settings.question_timeout_s),
+                self.sessions.steady(now) + timedelta(seconds=self.settings.question_timeout_s),
                 {"question": question.id},
             ),
             now,
@@ -74,10 +77,11 @@ class Dialogs:
     def advance(self, now: datetime) -> None:
         """Close the dialog once it has its answer or timed out, and act on the answer."""
         dialog = self.dialog
-        if dialog is None or (dialog.answer is None and not dialog.expired(now)):
+        steady = self.sessions.steady(now)
+        if dialog is None or (dialog.answer is None and not dialog.expired(steady)):
             return
         self.dialog = None
-        self.expression.interrupt_source(DIALOG_SOURCE, now)
+        self.expression.interrupt_source(DIALOG_SOURCE, steady)
         sessions, session = self.sessions, self.sessions.session
         answered = dialog.answer is not None
         sessions.note_interaction(dialog.channel or sessions.style(), answered, now)
@@ -117,7 +121,7 @@ class Dialogs:
         self.dialog = None
         self.question = None
         self.held = None
-        self.expression.interrupt_source(DIALOG_SOURCE, now)
+        self.expression.interrupt_source(DIALOG_SOURCE, self.sessions.steady(now))
 
     def close_for_request(self, now: datetime) -> None:
         """The user asked for an activity (or a program asked to start or stop one)
@@ -158,5 +162,5 @@ class Dialogs:
             self.dialog = dialog
             self.advance(now)
             return
-        dialog.rearm(now)
+        dialog.rearm(self.sessions.steady(now))
         self.open(dialog, now)

@@ -31,7 +31,9 @@ class Drives:
         self.model = model
         self.state: MotivationState | None = None
         """None until the first tick."""
-        self._last_step: datetime | None = None
+        self._last_step: float | None = None
+        """Monotonic seconds of the last step: a wall clock set back or forward would
+        freeze the drives or age them by the size of the step."""
         self._percepts: Percepts | None = None
         self._stimuli: Stimuli | None = None
 
@@ -42,14 +44,20 @@ class Drives:
         touches: Sequence[tuple[str, str]],
         running: str | None,
         now: datetime,
+        monotonic: float,
     ) -> None:
         """Step the drives to ``now`` under what is perceived (missing inputs: None,
-        not considered) while ``running`` runs (None: nothing, or it is paused)."""
+        not considered) while ``running`` runs (None: nothing, or it is paused).
+
+        The step's length is measured on the monotonic clock; the wall clock's ``now``
+        only says the hour, for the daily rhythm.
+        """
         model = self.model
         if self.state is None:
             self.state = model.initial_state(now)
-            self._last_step = now
-        dt = (now - self._last_step).total_seconds() if self._last_step else 0.0
+        if self._last_step is None:
+            self._last_step = monotonic
+        dt = monotonic - self._last_step
         if dt <= 0:
             return
         values = snapshot.values
@@ -66,7 +74,7 @@ class Drives:
             self._stimuli = model.stimuli(percepts)
             self._percepts = percepts
         self.state = model.step(self.state, dt, self._stimuli, running, now)
-        self._last_step = now
+        self._last_step = monotonic
 
     def behavior(self) -> str:
         """The behavior of the dominant motivation (``wait`` before the first step)."""

@@ -54,8 +54,8 @@ class Events:
         self.touches: list[tuple[str, str]] = []
         """(part, kind) of this tick's touches, for the motivation."""
         self.taken_at: datetime | None = None
-        """When the running activity last took words or a screen choice (an answer,
-        or a try at one): an unanswered menu's time counts from then."""
+        """When (steady time) the running activity last took words or a screen choice
+        (an answer, or a try at one): an unanswered menu's time counts from then."""
 
     def handle(self, snapshot: InputSnapshot, now: datetime) -> None:
         """Handle this tick's events in order, each under the fault barrier."""
@@ -160,8 +160,9 @@ class Events:
             and running.name != "notification"
         ):
             self.runner.pause(running, "confirm_cancel", now, "right shoulder touched")
+            steady = self.sessions.steady(now)
             self.dialogs.open(
-                confirm_dialog(running.name, now, self.settings.confirm_timeout_s), now
+                confirm_dialog(running.name, steady, self.settings.confirm_timeout_s), now
             )
             return
         self.runner.deliver(touch)
@@ -182,7 +183,7 @@ class Events:
         if dialogs.dialog is not None:
             dialogs.close_for_request(now)
         elif self.runner.deliver(event):
-            self.taken_at = now
+            self.taken_at = self.sessions.steady(now)
             return
         running = self.runner.current
         if (

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from datetime import datetime, timedelta
+from datetime import datetime
 from typing import Any
 
 from activities import ActivityContext
@@ -81,7 +81,8 @@ class Runner:
         """Managers whose cancelled activities still run their cleanup states."""
         self.blocked = False
         """The robot is offline and no probe is due: nothing starts."""
-        self._probe_at: datetime | None = None
+        self._probe_at: float | None = None
+        """Monotonic seconds of the next probe (a wall clock set back must not delay it)."""
         self._probe_wait_s = 0.0
 
     def start(
@@ -174,7 +175,7 @@ class Runner:
             state=activity.state_path if activity is not None else "",
         )
 
-    def check_robot_link(self, now: datetime) -> None:
+    def check_robot_link(self, monotonic: float) -> None:
         """Set :attr:`blocked`: True while the robot is offline and no probe is due.
 
         Offline (too many commands in a row not acknowledged), the robot starts nothing:
@@ -182,9 +183,9 @@ class Runner:
         through as a probe, the wait doubling from ``ack_timeout_s`` up to
         ``offline_retry_max_s``; feedback or the robot's token ends it at once.
         """
-        self.blocked = self._unreachable(now)
+        self.blocked = self._unreachable(monotonic)
 
-    def _unreachable(self, now: datetime) -> bool:
+    def _unreachable(self, monotonic: float) -> bool:
         settings, expression = self.settings, self.deps.expression
         if not expression.robot_offline:
             if self._probe_at is not None:
@@ -193,15 +194,15 @@ class Runner:
             return False
         if self._probe_at is None:
             self._probe_wait_s = settings.ack_timeout_s
-            self._probe_at = now + timedelta(seconds=self._probe_wait_s)
+            self._probe_at = monotonic + self._probe_wait_s
             self.deps.report_error(
                 "robot",
                 f"robot offline: {expression.unacked_in_a_row} commands in a row"
                 " not acknowledged; no activity starts until it answers",
             )
             return True
-        if now < self._probe_at:
+        if monotonic < self._probe_at:
             return True
         self._probe_wait_s = min(2 * self._probe_wait_s, settings.offline_retry_max_s)
-        self._probe_at = now + timedelta(seconds=self._probe_wait_s)
+        self._probe_at = monotonic + self._probe_wait_s
         return False

@@ -32,6 +32,7 @@ from dms.controller.running import Running
 from dms.inputs import InputSnapshot
 from dms.kernel import keys
 from dms.kernel.activity_names import ACTIVITIES
+from dms.kernel.clock import SteadyTime
 from dms.kernel.messages import ChosenBy, Mode, Reason, UserPerception
 from dms.kernel.session_metrics import SessionAccount
 from memory import Profile, ProfileError, Question
@@ -54,6 +55,7 @@ HELD_WRITES_MAX = 1000
 ready but never engaged for hours must not grow the daemon's memory without end)."""
 
 _HOUR = timedelta(hours=1)
+_SECOND = timedelta(seconds=1)
 
 
 @dataclass
@@ -85,7 +87,8 @@ class Session:
     held: list[Callable[[], object]] = field(default_factory=list)
     """The writes of a newcomer's session, in order, sent when she qualifies."""
     engaged_since: datetime | None = None
-    """Since when a newcomer has been seen ready and engaged, without a break."""
+    """Since when (steady time) a newcomer has been seen ready and engaged, without a
+    break."""
     refused: bool = False
     """A newcomer over ``new_profiles_per_hour``: nothing of this session is stored."""
     answered: dict[str, Any] = field(default_factory=dict)
@@ -98,7 +101,11 @@ class Session:
 
 
 class Newcomers:
-    """The hourly cap on new profiles, and the one-line report of the ids it refused."""
+    """The hourly cap on new profiles, and the one-line report of the ids it refused.
+
+    Its times are steady (:meth:`Sessions.steady`): a wall clock set back an hour must
+    not close the hour's window for an hour more.
+    """
 
     def __init__(self, per_hour: int, report: Callable[[str, str], None]) -> None:
         self.per_hour = per_hour
@@ -148,13 +155,30 @@ class Sessions:
         self.user: UserPerception | None = None
         """``perception/user`` at this tick; None if stale or missing."""
         self._unknown_since: datetime | None = None
+        """Steady time since when perception has not said who is there."""
         self.newcomers = Newcomers(settings.new_profiles_per_hour, deps.report_error)
+        self.clock = SteadyTime()
+        """Takes the wall clock's steps out of the tick's ``now`` (:meth:`steady`)."""
+        self._last_cut: tuple[str, str, datetime, timedelta] | None = None
+        """The last activity a session end cut here: user, activity, when (wall time) and
+        the steps of the wall clock until then (``clock.offset``)."""
 
-    def see(self, snapshot: InputSnapshot) -> None:
-        """Take this tick's inputs."""
+    def see(self, snapshot: InputSnapshot, now: datetime, monotonic: float) -> None:
+        """Take this tick's inputs, and its time on both clocks (for :meth:`steady`)."""
+        self.clock.observe(now, monotonic)
         self.snapshot = snapshot
         user = snapshot.values.get(keys.PERCEPTION_USER)
         self.user = user if isinstance(user, UserPerception) else None
+
+    def steady(self, now: datetime) -> datetime:
+        """This tick's ``now`` on the steady clock (:class:`~dms.kernel.clock.SteadyTime`).
+
+        What measures a duration reads it (grace periods, dialog deadlines, the menu's
+        and the activities' waits, the robot's commands), so that setting the wall clock
+        changes no decision; what names a time (the profile's session and run times, the
+        agenda, the decision log) keeps the wall time ``now``.
+        """
+        return self.clock.steady(now)
 
     # ------------------------------------------------------------------ who is there
 
@@ -178,6 +202,7 @@ class Sessions:
             self._unknown_since = None
             return None
         if self.perception_unknown():
+            now = self.steady(now)
             since = self._unknown_since = self._unknown_since or now
             grace_s = self.settings.perception_grace_s
             if (now - since).total_seconds() < grace_s:
@@ -247,6 +272,7 @@ class Sessions:
         """Called every tick after the session's begin or end: store a newcomer seen
         ready and engaged for ``new_user_after_s`` (within ``new_profiles_per_hour``),
         and report the newcomers the cap refused."""
+        now = self.steady(now)  # only durations here: nothing is named by this time
         self.newcomers.report_due(now)
         session = self.session
         if session is None or session.newcomer is None or session.refused:
@@ -328,7 +354,13 @@ class Sessions:
         name, ended = last.get("activity"), last.get("ended")
         if name not in ACTIVITIES or not isinstance(ended, datetime):
             return None
-        age = (now - ended).total_seconds()
+        since = now - ended
+        cut = self._last_cut
+        if cut is not None and cut[:2] == (user_id, name) and abs(ended - cut[2]) < _SECOND:
+            # the cut was here: the wall clock's steps since do not count (a cut at
+            # another robot, or before a restart, has only the wall time the store keeps)
+            since -= self.clock.offset - cut[3]
+        age = since.total_seconds()
         if not 0 <= age <= window:
             return None
         chosen_by = last.get("chosen_by")
@@ -416,7 +448,12 @@ class Sessions:
         session = self.session
         if session is None or running.user_id != session.user_id or running.name == "menu":
             return False
-        run = (running.name, running.started, now, outcome, running.chosen_by or "robot")
+        # Both ends are named by the wall clock; set back during the run, it would name an
+        # end before the start, which the store refuses: the start is then named the end.
+        started = min(running.started, now)
+        run = (running.name, started, now, outcome, running.chosen_by or "robot")
+        if outcome == "cut":
+            self._last_cut = (session.user_id, running.name, now, self.clock.offset)
 
         def write() -> None:  # the session's id read when sent: a newcomer's comes later
             self.profiles_call(

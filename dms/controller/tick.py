@@ -101,6 +101,8 @@ class Controller:
         self._tick += 1
         self.counters.ticks += 1
         self.log.begin(self._tick)
+        # Before anything can send a command: its timeouts count on the monotonic clock.
+        self.deps.expression.set_monotonic(monotonic)
         barrier, sessions, runner, dialogs, choice = (
             self._barrier,
             self.sessions,
@@ -110,19 +112,20 @@ class Controller:
         )
         # 1. Read the inputs: stale and missing ones are left out (not considered).
         snapshot = self.inputs.take(monotonic)
-        sessions.see(snapshot)
+        sessions.see(snapshot, now, monotonic)
         # Urgent inputs first: answers to a dialog or to the running activity, the
         # shoulder's "continue or stop?", requests for an activity by name.
         self.events.handle(snapshot, now)
         with barrier.step("motivation", sessions.user):
             running = runner.current
             active = running.name if running is not None and not running.paused else None
-            self.drives.step(snapshot, sessions.user, self.events.touches, active, now)
+            self.drives.step(snapshot, sessions.user, self.events.touches, active, now, monotonic)
         with barrier.step("robot"):
+            steady = sessions.steady(now)  # what the robot and the frames measure with
             if self.deps.scene is not None:
-                self.deps.scene.update(snapshot.values, snapshot.fresh, now)
-            self.deps.expression.update(now)
-            runner.check_robot_link(now)
+                self.deps.scene.update(snapshot.values, snapshot.fresh, steady)
+            self.deps.expression.update(steady)
+            runner.check_robot_link(monotonic)
         if self.deps.profiles is not None:
             with barrier.step("memory"):
                 self.deps.profiles.retry(now)
@@ -241,6 +244,7 @@ class Controller:
             set_user_param=self._set_user_param,
             frames=scene.frames if scene is not None else None,
             joints=scene.joints if scene is not None else {},
+            steady=self.sessions.steady,
         )
 
     def _set_user_param(self, name: str, value: Any) -> None:

@@ -4,6 +4,13 @@ The daemon's entry point builds a :class:`RealClock`; tests and simulation build
 :class:`VirtualClock` and advance it. Everything below the entry point receives
 ``now`` (a timezone-aware UTC ``datetime``) from the clock instead of reading the
 system time, so the same code runs live and on a virtual timeline.
+
+Two clocks, two jobs. The monotonic clock measures: the drives' steps, timeouts, rate
+limits, and through :class:`SteadyTime` the durations kept as datetimes (a dialog's
+deadline, an activity's wait, the simulated robot's commands). The wall clock names:
+schedules, log lines, the hour of the daily rhythm. An administrator or NTP may set the
+wall clock back or forward at any moment; :class:`WallSteps` notices it, so that it can
+be reported, and nothing that measures time moves with it.
 """
 
 from __future__ import annotations
@@ -17,6 +24,10 @@ from typing import Protocol
 
 TICK_PERIOD_S = 0.5
 """The decision loop's period: 2 Hz, as in the paper."""
+
+WALL_STEP_S = 2.0
+"""How far the wall clock may drift from the monotonic one between two readings before
+it counts as set (NTP slews by far less; a tick late by load moves both clocks alike)."""
 
 
 class Clock(Protocol):
@@ -49,6 +60,7 @@ class VirtualClock:
         if start.tzinfo is None:
             raise ValueError("VirtualClock needs a timezone-aware start time")
         self._start = start.astimezone(UTC)
+        """The wall time at monotonic 0 (moved by :meth:`step_wall`)."""
         self._elapsed = 0.0
         self._now = self._start
         self._now_at = 0.0
@@ -76,6 +88,74 @@ class VirtualClock:
         if delta < self._elapsed:
             raise ValueError("a virtual clock never goes back")
         self._elapsed = delta
+
+    def step_wall(self, seconds: float) -> None:
+        """Set the wall clock ``seconds`` forward (negative: back), as an administrator
+        or NTP would; the monotonic clock does not move."""
+        self._start += timedelta(seconds=seconds)
+        self._now_at = -1.0  # the wall time read last is stale
+
+
+class WallSteps:
+    """Notices the wall clock being set between two readings of both clocks.
+
+    Over a step the wall clock moves by more (or less) than the monotonic clock;
+    a difference over ``threshold_s`` is a step. Each step is seen once: the next
+    readings compare with the stepped time.
+    """
+
+    def __init__(self, threshold_s: float = WALL_STEP_S) -> None:
+        self.threshold_s = threshold_s
+        self._last: tuple[datetime, float] | None = None
+
+    def observe(self, now: datetime, monotonic: float) -> float | None:
+        """The step in seconds (negative: back) since the last reading, or None."""
+        last, self._last = self._last, (now, monotonic)
+        if last is None:
+            return None
+        step = (now - last[0]).total_seconds() - (monotonic - last[1])
+        return step if abs(step) > self.threshold_s else None
+
+
+class SteadyTime:
+    """The wall time with the wall clock's steps taken out: the time durations are
+    measured on (dialog deadlines, grace periods, an activity's waits, the robot's
+    commands), while schedules, logs and names keep the wall time.
+
+    It moves with the monotonic clock, and is the wall time itself until the wall clock
+    is first set (:class:`WallSteps`): a simulation, whose clocks move together, sees
+    the very same times. Each step then stays as an offset, so a question open when an
+    administrator sets the clock forward an hour still has its whole time to be answered.
+    """
+
+    def __init__(self, threshold_s: float = WALL_STEP_S) -> None:
+        self._steps = WallSteps(threshold_s)
+        self.offset = timedelta(0)
+        """The wall time less the steady time: the sum of the steps seen."""
+
+    def observe(self, now: datetime, monotonic: float) -> None:
+        """Called once a tick with both clocks: takes a step of the wall clock out."""
+        step = self._steps.observe(now, monotonic)
+        if step is not None:
+            self.offset += timedelta(seconds=step)
+
+    def steady(self, now: datetime) -> datetime:
+        """``now`` (the wall time of the last :meth:`observe`) on the steady clock."""
+        return now - self.offset
+
+
+def describe_step(seconds: float) -> str:
+    """``"back 1 h 0 min 5 s"``: a wall-clock step for a person to read."""
+    whole = round(abs(seconds))
+    hours, rest = divmod(whole, 3600)
+    minutes, secs = divmod(rest, 60)
+    if hours:
+        size = f"{hours} h {minutes} min {secs} s"
+    elif minutes:
+        size = f"{minutes} min {secs} s"
+    else:
+        size = f"{abs(seconds):.1f} s"
+    return f"{'back' if seconds < 0 else 'forward'} {size}"
 
 
 @dataclass(frozen=True, slots=True)

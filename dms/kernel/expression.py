@@ -12,7 +12,9 @@ start, once the channel is free (when the interrupted source resumes).
 A command the robot never acknowledges is timed out after ``ack_timeout_s``, and one it
 started but never finished after ``done_timeout_s`` (plus the ``duration_s`` of media
 that says how long it lasts): its handle ends ``timed_out`` and the activity that issued
-it fails cleanly.
+it fails cleanly. The waits are measured on the monotonic clock the controller's tick
+hands over (:meth:`ExpressionArbiter.set_monotonic`), so a wall clock set forward fails
+no command in flight; an arbiter never handed one measures on the wall clock.
 
 The ``aim`` channel (gaze and pointing toward a frame) is best effort: a robot that
 predates it may ignore its commands, so their going unacknowledged never counts
@@ -86,6 +88,10 @@ class CommandHandle:
     sends: int = 0
     detail: str | None = None
     order: int = 0
+    sent_monotonic: float | None = None
+    """Monotonic seconds of the last send, for its timeout (None: measured on ``sent_at``)."""
+    started_monotonic: float | None = None
+    """Monotonic seconds of the robot's "started", likewise."""
 
     @property
     def finished(self) -> bool:
@@ -129,6 +135,12 @@ class ExpressionArbiter:
         self.unacked_in_a_row = 0
         """Commands the robot never acknowledged since it last said anything."""
         self._seen = False  # set from a bus thread by robot_seen(), read by update()
+        self._monotonic: float | None = None
+
+    def set_monotonic(self, monotonic: float) -> None:
+        """The controller's tick, first: the monotonic seconds that commands sent, started
+        and timed out from now on are stamped and measured with."""
+        self._monotonic = monotonic
 
     # ------------------------------------------------------------ requests
 
@@ -223,6 +235,7 @@ class ExpressionArbiter:
             if feedback.status == "started":
                 handle.status = CommandStatus.STARTED
                 handle.started_at = now
+                handle.started_monotonic = self._monotonic
                 continue
             self._by_id.pop(feedback.id, None)
             handle.detail = feedback.detail
@@ -257,17 +270,25 @@ class ExpressionArbiter:
     def _overdue(self, active: CommandHandle, now: datetime) -> str | None:
         """Why ``active`` has waited too long for the robot, or None."""
         if active.status is CommandStatus.SENT and active.sent_at is not None:
-            if now - active.sent_at >= self.ack_timeout:
+            waited = self._waited(active.sent_at, active.sent_monotonic, now)
+            if waited >= self.ack_timeout:
                 return f"not acknowledged within {self.ack_timeout.total_seconds():g} s"
         elif active.status is CommandStatus.STARTED and active.started_at is not None:
-            if now - active.started_at < self.done_timeout:
+            waited = self._waited(active.started_at, active.started_monotonic, now)
+            if waited < self.done_timeout:
                 return None  # within the shortest limit: no need to work out this one's
             length = active.args.get("duration_s")
             extra = float(length) if isinstance(length, int | float) and length > 0 else 0.0
             limit = self.done_timeout + timedelta(seconds=extra)
-            if now - active.started_at >= limit:
+            if waited >= limit:
                 return f"started but not done within {limit.total_seconds():g} s"
         return None
+
+    def _waited(self, since: datetime, since_monotonic: float | None, now: datetime) -> timedelta:
+        """How long since ``since``: on the monotonic clock if both ends were stamped on it."""
+        if since_monotonic is not None and self._monotonic is not None:
+            return timedelta(seconds=self._monotonic - since_monotonic)
+        return now - since
 
     def _release(self, handle: CommandHandle, now: datetime) -> None:
         lane = self._channels.get(handle.channel)
@@ -294,6 +315,7 @@ class ExpressionArbiter:
         handle.command_id = command_id
         handle.sends += 1
         handle.sent_at = now
+        handle.sent_monotonic = self._monotonic
         handle.status = CommandStatus.SENT
         lane.active = handle
         self._by_id[command_id] = handle
