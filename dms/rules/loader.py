@@ -23,9 +23,11 @@ def _read(path: Path) -> tuple[str | None, Problem | None]:
         return None, Problem(str(path), 1, 1, f"cannot read: {error.strerror or error}")
 
 
-def _parse_all(
+def parse_all(
     sources: Sequence[tuple[str, str]], schema: ParameterSchema | None
 ) -> tuple[tuple[n.Program, ...], list[Problem]]:
+    """The programs of ``(file, text)`` pairs checked together, and their problems (what
+    ``dms rules check``, a reload and the studio's rules pane all report)."""
     programs: list[n.Program] = []
     problems: list[Problem] = []
     for file, text in sources:
@@ -65,7 +67,7 @@ def lint_files(
     rules without problems; they never make the rules invalid.
     """
     sources, problems = _read_all(paths)
-    programs, found = _parse_all(sources, schema)
+    programs, found = parse_all(sources, schema)
     problems += found
     if problems:
         return problems, []
@@ -79,7 +81,7 @@ def load_rules(paths: Sequence[Path], schema: ParameterSchema | None = None) -> 
         RulesError: a file cannot be read, does not parse or does not verify.
     """
     sources, problems = _read_all(paths)
-    programs, found = _parse_all(sources, schema)
+    programs, found = parse_all(sources, schema)
     problems += found
     if problems:
         raise RulesError(problems)
@@ -90,7 +92,7 @@ def rules_from_text(
     text: str, file: str = "<rules>", schema: ParameterSchema | None = None
 ) -> RuleSet:
     """Rules from a string (tests, benchmarks, tools); raises :class:`RulesError`."""
-    programs, problems = _parse_all([(file, text)], schema)
+    programs, problems = parse_all([(file, text)], schema)
     if problems:
         raise RulesError(problems)
     return RuleSet(programs)

@@ -14,10 +14,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from dms.rules import nodes as n
-from dms.rules.parser import parse
-from dms.rules.problems import Problem, RulesError
-from dms.rules.verifier import activation_warnings, verify
+from dms.rules.loader import parse_all
+from dms.rules.problems import Problem
+from dms.rules.verifier import activation_warnings
 from dms.studio.folder import StudioError, digest, write_atomically
 
 
@@ -102,15 +101,7 @@ def finding(problem: Problem, severity: str) -> dict[str, Any]:
 
 def lint_sources(sources: Sequence[tuple[str, str]]) -> tuple[list[Problem], list[Problem]]:
     """``(problems, warnings)`` of ``(file, text)`` pairs checked together."""
-    programs: list[n.Program] = []
-    problems: list[Problem] = []
-    for file, text in sources:
-        try:
-            programs.append(parse(text, file))
-        except RulesError as error:
-            problems.extend(error.problems)
-    lines = {file: text.splitlines() for file, text in sources}
-    problems.extend(verify(programs, None, lines))
+    programs, problems = parse_all(sources, None)
     if problems:
         return problems, []
     return problems, activation_warnings(programs)
