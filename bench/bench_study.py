@@ -12,9 +12,10 @@ with the decision system's chooser and with each baseline (``random``, ``fixed``
   bootstrap 95 % interval over the seeds;
 - ``wall_s``.
 
-Run: ``.venv/bin/python bench/bench_study.py [--quick] [--seeds 0-99] [--choosers random,oracle]``
-(about 20 s a study on the dev machine: 100 seeds and four baselines take hours; the
-figures in docs/benchmarks.md say which seeds they used).
+Run: ``.venv/bin/python bench/bench_study.py [--quick] [--seeds 0-99]
+[--choosers random,oracle] [--jobs 2]`` (about 10 s a study on the dev machine: 100 seeds
+and four baselines take about 85 minutes of one core; ``--jobs`` runs studies side by
+side, with the same results).
 """
 
 from __future__ import annotations
@@ -38,6 +39,9 @@ def main() -> None:
     parser.add_argument("--choosers", help="baselines, comma-separated (default: all)")
     parser.add_argument("--sessions", type=int, default=30)
     parser.add_argument("--population", default="paper", choices=("paper", "heldout"))
+    parser.add_argument(
+        "--jobs", type=int, default=1, help="studies run at once (worker processes)"
+    )
     args = parser.parse_args()
     if args.seeds:
         first, last = args.seeds.split("-")
@@ -61,6 +65,7 @@ def main() -> None:
             settings=settings,
             chooser=chooser,
             population=args.population,
+            jobs=args.jobs,
         )
 
     dms = run("dms")

@@ -16,9 +16,11 @@ observation; with one seed, each session pair is).
 
 from __future__ import annotations
 
+import functools
 import math
 import statistics
 from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -74,24 +76,33 @@ def run_seeds(
     population: Population = "paper",
     calibration: Calibration = DEFAULT,
     progress: Callable[[int], None] | None = None,
+    jobs: int = 1,
 ) -> list[StudyResult]:
-    """One study per seed; ``progress`` is told the number of studies done."""
-    results = []
-    for done, seed in enumerate(seeds, 1):
-        results.append(
-            run_study(
-                sessions,
-                minutes,
-                proactivity,
-                seed,
-                settings,
-                chooser=chooser,
-                population=population,
-                calibration=calibration,
-            )
-        )
-        if progress is not None:
-            progress(done)
+    """One study per seed, in the order of ``seeds``; ``progress`` is told the number of
+    studies done. ``jobs`` > 1 runs that many studies at once in worker processes: each
+    study depends on its seed alone, so the results are the same."""
+    study = functools.partial(
+        run_study,
+        sessions,
+        minutes,
+        proactivity,
+        settings=settings,
+        chooser=chooser,
+        population=population,
+        calibration=calibration,
+    )
+    results: list[StudyResult] = []
+    if jobs <= 1:
+        for seed in seeds:
+            results.append(study(seed))
+            if progress is not None:
+                progress(len(results))
+        return results
+    with ProcessPoolExecutor(jobs) as pool:
+        for result in pool.map(study, seeds):
+            results.append(result)
+            if progress is not None:
+                progress(len(results))
     return results
 
 

@@ -12,7 +12,7 @@ paper's value and says which rows are inputs. The figures are in docs/benchmarks
 from __future__ import annotations
 
 from sim.calibration import DEFAULT
-from sim.prediction import role, summary, table
+from sim.prediction import per_study, role, run_seeds, summary, table
 from sim.study import run_study, study_settings
 from sim.table4 import METRICS, PAPER
 
@@ -48,3 +48,11 @@ def test_the_multi_seed_report_gives_intervals_and_says_what_is_an_input() -> No
     assert role("speech_recognition_errors") == "input"
     text = table(estimates, [0, 1])
     assert "95 % CI" in text and "prediction" in text
+
+
+def test_studies_run_side_by_side_give_the_same_results_in_the_seeds_order() -> None:
+    settings = study_settings()
+    alone = run_seeds([1, 0], 2, 5.0, settings=settings, chooser="random")
+    side_by_side = run_seeds([1, 0], 2, 5.0, settings=settings, chooser="random", jobs=2)
+    assert per_study(side_by_side) == per_study(alone)
+    assert per_study(alone) != per_study(list(reversed(alone)))  # the order shows
