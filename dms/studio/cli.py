@@ -1,4 +1,5 @@
-"""``dms studio``: serve the behavior studio on loopback until Ctrl-C.
+"""``dms studio``: serve the behavior studio until Ctrl-C, on loopback unless given TLS
+files (:mod:`dms.viewer.tls`).
 
 It prints a URL carrying the token the API asks for (as Jupyter does): open it, and
 the page keeps the token. The robot a trial drives is wired by the composition root
@@ -15,6 +16,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from dms.kernel.errors import ConfigError
+from dms.viewer.cli import TLS_CERT_HELP, TLS_KEY_HELP
 
 if TYPE_CHECKING:
     from dms.studio.link import DaemonLink
@@ -43,8 +45,14 @@ def studio_command(
         int, typer.Option(min=0, max=65535, help="HTTP port (0: any free port).")
     ] = DEFAULT_PORT,
     host: Annotated[
-        str, typer.Option(help="Address to serve on; it writes files: keep it on loopback.")
+        str,
+        typer.Option(
+            help="Address to serve on; it writes files: another than loopback needs "
+            "--tls-cert and --tls-key."
+        ),
     ] = "127.0.0.1",
+    tls_cert: Annotated[Path | None, typer.Option("--tls-cert", help=TLS_CERT_HELP)] = None,
+    tls_key: Annotated[Path | None, typer.Option("--tls-key", help=TLS_KEY_HELP)] = None,
     allow_host: Annotated[
         list[str] | None,
         typer.Option(
@@ -86,21 +94,23 @@ def studio_command(
     from dms.studio.auth import new_token
     from dms.studio.folder import Folder
     from dms.studio.rules import rules_files
-    from dms.viewer.cli import bind
+    from dms.viewer.cli import bind, page_url
     from dms.viewer.server import serve
+    from dms.viewer.tls import server_context
 
     if not _robot_factory:
         raise ConfigError("no robot wired: run the studio through `dms studio`")
     directory = (folder or BEHAVIORS_DIR).resolve()
     if not directory.is_dir():
         raise ConfigError(f"--folder {directory}: not a directory")
-    link = _connect(connect or [], zenoh_config, robot)
-    sock = bind(host, port)
+    tls = server_context(tls_cert, tls_key)
+    sock = bind(host, port, "studio", tls is not None)
+    link: DaemonLink | None = None
     try:
+        link = _connect(connect or [], zenoh_config, robot)
         address = sock.getsockname()
         token = new_token()
-        shown = f"[{host}]" if ":" in host else host
-        url = f"http://{shown}:{address[1]}/?token={token}"
+        url = f"{page_url(tls is not None, host, address[1])}/?token={token}"
         studio = Studio(
             Folder(directory, BEHAVIORS_DIR),
             _robot_factory[0],
@@ -110,7 +120,7 @@ def studio_command(
         app = create_app(studio, token, address[1], host, tuple(allow_host or ()))
         daemon = f", robot {robot}'s daemon" if link is not None else ""
         ready = f"dms: studio on {url} (editing {directory}{daemon}); Ctrl-C stops"
-        serve(app, sock, ready, on_exit=lambda: None)
+        serve(app, sock, ready, on_exit=lambda: None, tls=tls)
     finally:
         sock.close()
         if link is not None:

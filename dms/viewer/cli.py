@@ -10,8 +10,12 @@ import typer
 
 from dms.kernel.errors import ConfigError
 from dms.kernel.keys import ROBOT_ID_RE
+from dms.viewer.tls import refuse_clear_text
 
 DEFAULT_PORT = 8080
+
+TLS_CERT_HELP = "A PEM certificate: serve HTTPS (needed for a --host other than loopback)."
+TLS_KEY_HELP = "The PEM private key of --tls-cert, without a passphrase."
 
 
 def check_robot_ids(robots: list[str]) -> list[str]:
@@ -21,13 +25,19 @@ def check_robot_ids(robots: list[str]) -> list[str]:
     return robots
 
 
-def bind(host: str, port: int) -> socket.socket:
-    """The listening socket, bound before anything else starts: a port in use is one line."""
+def bind(host: str, port: int, page: str, tls: bool) -> socket.socket:
+    """The listening socket, bound before anything else starts: a port in use is one line.
+
+    Without ``tls`` only a loopback address is bound (:func:`~dms.viewer.tls.refuse_clear_text`),
+    checked on what ``host`` resolves to: a name may stand for the machine's LAN address.
+    """
     try:
         infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
     except socket.gaierror as error:
         raise ConfigError(f"--host {host}: {error.strerror}") from None
     family, kind, proto, _name, address = infos[0]
+    if not tls:
+        refuse_clear_text(page, host, str(address[0]))
     sock = socket.socket(family, kind, proto)
     try:
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -54,8 +64,14 @@ def view_command(
         int, typer.Option(min=0, max=65535, help="HTTP port (0: any free port).")
     ] = DEFAULT_PORT,
     host: Annotated[
-        str, typer.Option(help="Address to serve on; the page has no login: keep it on loopback.")
+        str,
+        typer.Option(
+            help="Address to serve on; the page has no login: another than loopback "
+            "needs --tls-cert and --tls-key."
+        ),
     ] = "127.0.0.1",
+    tls_cert: Annotated[Path | None, typer.Option("--tls-cert", help=TLS_CERT_HELP)] = None,
+    tls_key: Annotated[Path | None, typer.Option("--tls-key", help=TLS_KEY_HELP)] = None,
     allow_host: Annotated[
         list[str] | None,
         typer.Option(
@@ -84,11 +100,13 @@ def view_command(
     from dms.viewer.model import LiveModel
     from dms.viewer.server import serve
     from dms.viewer.source import BusSource
+    from dms.viewer.tls import server_context
     from motivation.config import MotivationConfig
 
     robots = check_robot_ids(list(robot or []))
     config = make_client_config(connect or (), zenoh_config)  # a bad file fails before the port
-    sock = bind(host, port)
+    tls = server_context(tls_cert, tls_key)
+    sock = bind(host, port, "viewer", tls is not None)
     try:
         defaults = {name: drive.threshold for name, drive in MotivationConfig().drives.items()}
         model = LiveModel(robots, default_thresholds=defaults)
@@ -97,16 +115,18 @@ def view_command(
             source.start()
             try:
                 address = sock.getsockname()
-                url = f"http://{_url_host(host)}:{address[1]}/"
+                url = f"{page_url(tls is not None, host, address[1])}/"
                 watched = ", ".join(robots) if robots else "every robot on the bus"
                 ready = f"dms: viewer on {url} ({watched}); Ctrl-C stops"
                 app = create_app(model, address[1], host, tuple(allow_host or ()))
-                serve(app, sock, ready, on_exit=model.end_streams)
+                serve(app, sock, ready, on_exit=model.end_streams, tls=tls)
             finally:
                 source.close()
     finally:
         sock.close()
 
 
-def _url_host(host: str) -> str:
-    return f"[{host}]" if ":" in host else host
+def page_url(tls: bool, host: str, port: int) -> str:
+    """``http(s)://HOST:PORT`` of a page, for the line that says where it serves."""
+    shown = f"[{host}]" if ":" in host else host
+    return f"{'https' if tls else 'http'}://{shown}:{port}"

@@ -80,7 +80,7 @@ class HostGuard:
         origin = headers.get(b"origin")
         if scope["method"] not in SAFE_METHODS and origin is not None:
             seen = origin.decode("latin-1").strip().lower()
-            if not (seen.startswith("http://") and seen[len("http://") :] == host):
+            if seen != f"{scope.get('scheme', 'http')}://{host}":  # https when served with TLS
                 response = PlainTextResponse("403 Forbidden: foreign origin\n", 403)
                 await response(scope, receive, send)
                 return

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import socket
+import ssl
 import sys
 from collections.abc import Callable
 from types import FrameType
@@ -37,10 +38,19 @@ class _Server(uvicorn.Server):
 
 
 def serve(
-    app: Starlette, sock: socket.socket, ready_line: str, on_exit: Callable[[], None]
+    app: Starlette,
+    sock: socket.socket,
+    ready_line: str,
+    on_exit: Callable[[], None],
+    tls: ssl.SSLContext | None = None,
 ) -> None:
-    """Serve ``app`` on ``sock`` until SIGINT or SIGTERM; ``on_exit`` is called then."""
+    """Serve ``app`` on ``sock`` until SIGINT or SIGTERM; ``on_exit`` is called then.
+    With ``tls`` (:func:`dms.viewer.tls.server_context`) it serves HTTPS."""
     config = uvicorn.Config(
         app, log_level="warning", access_log=False, timeout_graceful_shutdown=GRACE_S
     )
+    config.load()
+    # uvicorn builds a context only from file names, with no minimum version; the one
+    # checked at the start is set in its place (uvicorn does not load a loaded config).
+    config.ssl = tls
     _Server(config, ready_line, on_exit).run(sockets=[sock])
