@@ -211,6 +211,10 @@ class RulesSettings(_Section):
 class BehaviorsSettings(_Section):
     folder: Path | None = None
     """A folder of behavior files; None means the shipped behaviors."""
+    watch_s: float = Field(1.0, ge=0.0)
+    """How often ``dms run`` looks for changed behavior files (the folder's ``*.yaml``)
+    and rules files, to reload them by itself once a change holds still for one look
+    (:mod:`dms.watch`); 0: only SIGHUP and ``reload_rules`` reload them."""
 
 
 class StorageSettings(_Section):

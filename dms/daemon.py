@@ -6,7 +6,7 @@ published on ``dms/decision`` and printed, then the state on ``dms/state``. The
 ``alive/dms`` token is declared only once everything is ready. SIGINT and SIGTERM
 stop the running activity and flush the store; the exit code is then 130 after SIGINT
 (Ctrl-C, as a shell reports it) and 0 after SIGTERM (a supervisor's stop). SIGHUP
-reloads the rules and the behaviors.
+reloads the rules and the behaviors, and so does saving them (:mod:`dms.watch`).
 
 Under systemd (``Type=notify``) it says READY once ``alive/dms`` is declared and feeds
 the watchdog from the tick loop (:mod:`dms.notify`). Its log goes to stderr at
@@ -53,6 +53,7 @@ from dms.rate_caps import RateCaps
 from dms.reloader import Reloader
 from dms.robot_link import ZenohRobot
 from dms.studio.daemon_try import TRY_KEY, DaemonTry
+from dms.watch import FileWatch
 
 log = logging.getLogger(__name__)
 
@@ -200,6 +201,12 @@ class Daemon:
             raise ConfigError(f"robot = {settings.robot!r} needs an in-process robot: use dms run")
         self.body: JointReporter | None = robot if isinstance(robot, JointReporter) else None
         """The in-process robot's joints, published on ``robot/joints`` each tick."""
+        self.watch = FileWatch(  # made before the files are read: it sees every change
+            settings.behaviors.folder,
+            settings.rules.files,
+            lambda: self.reloader.request(),
+            settings.behaviors.watch_s,
+        )
         self.stack: Stack = build_stack(
             settings,
             robot,
@@ -208,9 +215,12 @@ class Daemon:
             rng=random.Random(settings.seed),
         )
         library, rules = self.stack.library, self.stack.rules
-        self.reloader = Reloader(
-            lambda: reload_rules_and_behaviors(library, rules), self.report_error
-        )
+
+        def reload() -> list[tuple[str, str]]:
+            self.watch.mark()  # the files this reload reads: the watch lets them be
+            return reload_rules_and_behaviors(library, rules)
+
+        self.reloader = Reloader(reload, self.report_error)
         self.trying = DaemonTry(self.stack, self._lock, self.bus.publish, self.clock.now)
         """A behavior tried from the studio (only while nobody is in a session)."""
 
@@ -378,6 +388,7 @@ class Daemon:
             ", ".join(queries),
         )
         self.reloader.start()
+        self.watch.start()
         for key, warning in self.stack.warnings:
             self.report_error(key, warning)
         agenda = self.stack.agenda
@@ -515,6 +526,7 @@ class Daemon:
     def close(self) -> None:
         """Stop the running activity, flush the store, leave Zenoh."""
         self.notifier.stopping()
+        self.watch.stop()
         self.reloader.stop()
         try:
             with self._lock:

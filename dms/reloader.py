@@ -1,12 +1,13 @@
 """Reloads of the rules and behaviors, coalesced and off the tick thread.
 
-SIGHUP and ``reload_rules`` requests only raise a flag; one worker thread reads and
-compiles the files and swaps them in (each of :class:`~dms.rules.LiveRules` and
-:class:`~activities.BehaviorLibrary` swaps its new version in with one assignment,
-so a tick sees either the old or the new version, never half of one). Requests that
-arrive while a reload runs are served by one more reload after it, and reloads start
-at most every :data:`MIN_INTERVAL_S`: a flood of a thousand requests a second costs four
-reloads a second, and the 2 Hz loop never waits for a compile.
+SIGHUP, ``reload_rules`` requests and saved files (:mod:`dms.watch`) only raise a flag;
+one worker thread reads and compiles the files and swaps them in (each of
+:class:`~dms.rules.LiveRules` and :class:`~activities.BehaviorLibrary` swaps its new
+version in with one assignment, so a tick sees either the old or the new version, never
+half of one). Requests that arrive while a reload runs are served by one more reload
+after it, and reloads start at most every :data:`MIN_INTERVAL_S`: a flood of a thousand
+requests a second costs four reloads a second, and the 2 Hz loop never waits for a
+compile.
 
 A reload cannot be interrupted (it runs Python code that swaps objects in), so it is
 watched instead: one still running after :data:`DEADLINE_S` is reported on ``dms/errors``
