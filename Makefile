@@ -17,9 +17,10 @@ $(STAMP): pyproject.toml
 run: $(STAMP)
 	$(BIN)/dms run --visitor demo
 
-## test: the whole suite (unit, integration, scenarios)
+## test: the whole suite (unit, integration, scenarios), a test file per worker, two at once
+## (most integration tests wait on a real daemon's clock, so two workers halve the time)
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
 ## lint: ruff, mypy and the import floors (docs/architecture.md)
 lint: $(STAMP)
