@@ -80,6 +80,8 @@ class DaemonTry:
         """Holding still at a state until the next ``step``."""
         self._before = ""
         self._shown: tuple[str, str, bool] | None = None
+        self._userdata: dict[str, Any] = {}
+        """The userdata as last published, to say which keys changed."""
 
     # ---------------------------------------------------------------- the query
 
@@ -147,6 +149,7 @@ class DaemonTry:
         self.activity = BehaviorLibrary(specs, library.directory).create(spec.name, context)
         self.behavior = spec.name
         self._shown = None
+        self._userdata = {}
         self.stepping = self.paused = step
         self.activity.start(now)
         self._report()
@@ -222,9 +225,11 @@ class DaemonTry:
         status = activity.status.value if activity.status else "running"
         paused = self.paused and not activity.finished
         shown = (activity.state_path, status, paused)
-        if shown == self._shown and why is None:
+        userdata = shown_userdata(activity.userdata)
+        if shown == self._shown and userdata == self._userdata and why is None:
             return
-        self._shown = shown
+        changed = {k: v for k, v in userdata.items() if self._userdata.get(k, ...) != v}
+        self._shown, self._userdata = shown, userdata
         result = activity.result if activity.finished else None
         self.publish(
             TRY_STATE_KEY,
@@ -237,5 +242,24 @@ class DaemonTry:
                 "outcome": result.outcome if result is not None else None,
                 "error": result.error if result is not None else None,
                 "detail": why,
+                "userdata": userdata,
+                "changed": changed,
             },
         )
+
+
+USERDATA_CHARS = 4000
+"""A userdata value longer than this as JSON is shown cut (a try publishes every change)."""
+
+
+def shown_userdata(userdata: dict[str, Any]) -> dict[str, Any]:
+    """The userdata as JSON values for the page's table: a value JSON cannot carry is
+    shown as its text, a long one cut to :data:`USERDATA_CHARS`."""
+    out: dict[str, Any] = {}
+    for key, value in userdata.items():
+        text = json.dumps(value, default=str)
+        if len(text) > USERDATA_CHARS:
+            out[str(key)] = f"{text[:USERDATA_CHARS]}… ({len(text)} characters)"
+        else:
+            out[str(key)] = json.loads(text)
+    return out

@@ -251,6 +251,9 @@ states:
     transitions: {done: THREE}
   THREE:
     show: {text: three}
+    transitions: {done: SEEN}
+  SEEN:
+    set_data: {values: {seen: three}}
     transitions: {done: done}
 """
 
@@ -284,6 +287,11 @@ def test_on_the_daemons_robot_a_behavior_goes_state_by_state_and_one_state_runs_
         ("THREE", False),
         ("", False),
     ], shown
+    # the userdata as it changes, in the message and in the page's table
+    assert "seen" not in tries.messages[0]["userdata"]
+    assert tries.messages[-1]["userdata"]["seen"] == "three"
+    assert any(t["changed"] == {"seen": "three"} for t in tries.messages), tries.messages
+    page.wait_for_selector('#userdata tr:has-text("seen"):has-text("three")')
 
     # One state alone: only its command goes out, and its outcome ends the try.
     select_state(page, "TWO")

@@ -120,6 +120,7 @@ export class Trial {
     where.textContent = state.finished
       ? `ended: ${state.outcome || state.status}${state.error ? ` (${state.error})` : why}`
       : `on the robot  ${path || "-"}${this.paused ? "  (held: Step goes on)" : ""}`;
+    this.showUserdata(state.userdata, state.changed);
     if (state.finished) this.active = false;
   }
 
