@@ -22,10 +22,6 @@ from enum import Enum
 from typing import Any
 
 from activities.engine import (
-    _DONE,
-    _FAILED,
-    _INVALID,
-    _RUNNING,
     MAX_STEPS_PER_TICK,
     PREEMPTED,
     Event,
@@ -78,7 +74,7 @@ class Container(Node):
         """Bind and reset the states to run first."""
 
     def terminate(self, now: datetime, new_status: Status) -> None:
-        if new_status is _DONE and not self.shares_userdata:
+        if new_status is Status.DONE and not self.shares_userdata:
             for key in self.io.output_keys:
                 if key in self.data:
                     self.ud[key] = self.data[key]
@@ -136,7 +132,7 @@ class StateMachine(Container):
 
     def wake(self, now: datetime) -> Wake | None:
         current = self.current
-        if self._preempt_requested or current is None or current.status is not _RUNNING:
+        if self._preempt_requested or current is None or current.status is not Status.RUNNING:
             return None
         return current.wake(now)
 
@@ -148,16 +144,16 @@ class StateMachine(Container):
             if state is None:
                 return self.fail("no active state")
             status = state.tick(now)
-            if status is _RUNNING:
-                return _RUNNING
-            if status is _FAILED:
+            if status is Status.RUNNING:
+                return Status.RUNNING
+            if status is Status.FAILED:
                 return self.fail(f"{state.name}: {state.error}")
             outcome = state.outcome or ""
             target = self.transitions.get(state.name, {}).get(outcome)
             if target is None:
                 target = outcome  # an outcome of the container passes through
                 if outcome == PREEMPTED:
-                    state.status = _INVALID  # not serviced here: it climbs
+                    state.status = Status.INVALID  # not serviced here: it climbs
             self.transitions_taken += 1
             if target in self.states:
                 self._enter(self.states[target])
@@ -165,11 +161,11 @@ class StateMachine(Container):
             self.current = None
             self.rt.epoch += 1
             return self.finish(target)
-        return _RUNNING
+        return Status.RUNNING
 
     def terminate(self, now: datetime, new_status: Status) -> None:
         super().terminate(now, new_status)
-        if new_status is not _INVALID:
+        if new_status is not Status.INVALID:
             self.current = None
             self.rt.epoch += 1
 
@@ -228,7 +224,7 @@ class Concurrence(Container):
         return list(self.states.values())
 
     def active_children(self) -> Sequence[Node]:
-        return [s for s in self.states.values() if s.status is _RUNNING]
+        return [s for s in self.states.values() if s.status is Status.RUNNING]
 
     def enter_children(self, now: datetime) -> None:
         self._winding_down = False
@@ -248,9 +244,9 @@ class Concurrence(Container):
             return None
         waiting = Wake()
         for state in self.states.values():
-            if state.status is _DONE:
+            if state.status is Status.DONE:
                 continue
-            wake = state.wake(now) if state.status is _RUNNING else None
+            wake = state.wake(now) if state.status is Status.RUNNING else None
             if wake is None:
                 return None
             waiting.join(wake)
@@ -259,20 +255,20 @@ class Concurrence(Container):
     def _wind_down(self) -> None:
         self._winding_down = True
         for state in self.states.values():
-            if state.status is _INVALID or state.status is _RUNNING:
+            if state.status is Status.INVALID or state.status is Status.RUNNING:
                 state.preempt()
 
     def _tick_all(self, now: datetime) -> Node | None:
         for state in self.states.values():
-            live = state.status is _INVALID or state.status is _RUNNING
-            if live and state.tick(now) is _FAILED:
+            live = state.status is Status.INVALID or state.status is Status.RUNNING
+            if live and state.tick(now) is Status.FAILED:
                 return state
         return None
 
     def _match(self) -> str | None:
         for outcome, wanted in self.outcome_map.items():
             if all(
-                self.states[child].status is _DONE and self.states[child].outcome == out
+                self.states[child].status is Status.DONE and self.states[child].outcome == out
                 for child, out in wanted.items()
             ):
                 return outcome
@@ -283,7 +279,7 @@ class Concurrence(Container):
         cleanup runs), and once all have ended read the outcome map in order."""
         failed = self._tick_all(now)
         if failed is None and not self._winding_down:
-            done = [s for s in self.states.values() if s.status is _DONE]
+            done = [s for s in self.states.values() if s.status is Status.DONE]
             climbed = any(s.outcome == PREEMPTED and s.name not in self._services for s in done)
             if climbed:
                 self._preempted = True
@@ -297,20 +293,20 @@ class Concurrence(Container):
         if failed is not None:
             self._stop_all(now)
             return self.fail(f"{failed.name}: {failed.error}")
-        if any(state.status is not _DONE for state in self.states.values()):
-            return _RUNNING
+        if any(state.status is not Status.DONE for state in self.states.values()):
+            return Status.RUNNING
         outcome = self._match()
         if outcome is not None:
             return self.finish(outcome)
         if self._preempted:
             for state in self.states.values():
-                state.status = _INVALID  # not serviced here: it climbs
+                state.status = Status.INVALID  # not serviced here: it climbs
             return self.finish(PREEMPTED)
         return self.finish(self.default_outcome)
 
     def _stop_all(self, now: datetime) -> None:
         for state in self.states.values():
-            if state.status is _RUNNING:
+            if state.status is Status.RUNNING:
                 state.stop(now)
 
     def describe(self) -> dict[str, Any]:
@@ -356,14 +352,14 @@ class Iterator(Container):
         return [self.state]
 
     def active_children(self) -> Sequence[Node]:
-        return [self.state] if self.state.status is _RUNNING else []
+        return [self.state] if self.state.status is Status.RUNNING else []
 
     def forward_preempt(self) -> None:
         if self.index < len(self.items):
             self.state.preempt()
 
     def wake(self, now: datetime) -> Wake | None:
-        if self._preempt_requested or self.state.status is not _RUNNING:
+        if self._preempt_requested or self.state.status is not Status.RUNNING:
             return None
         return self.state.wake(now)
 
@@ -388,20 +384,20 @@ class Iterator(Container):
             if self.index >= len(self.items):
                 return self.finish(self.exhausted)
             status = self.state.tick(now)
-            if status is _RUNNING:
-                return _RUNNING
-            if status is _FAILED:
+            if status is Status.RUNNING:
+                return Status.RUNNING
+            if status is Status.FAILED:
                 return self.fail(f"{self.state.name}: {self.state.error}")
             outcome = self.state.outcome or ""
             if outcome in self.break_on:
                 return self.finish(self.break_on[outcome])
             if outcome not in self.continue_on:
                 if outcome == PREEMPTED:
-                    self.state.status = _INVALID  # not serviced here: it climbs
+                    self.state.status = Status.INVALID  # not serviced here: it climbs
                 return self.finish(outcome)
             self.index += 1
             self._next()
-        return _RUNNING
+        return Status.RUNNING
 
     def describe(self) -> dict[str, Any]:
         out = super().describe()
@@ -460,7 +456,7 @@ class Guard(Container):
         return [self.state]
 
     def active_children(self) -> Sequence[Node]:
-        return [self.state] if self.state.status is _RUNNING else []
+        return [self.state] if self.state.status is Status.RUNNING else []
 
     def forward_preempt(self) -> None:
         self.state.preempt()
@@ -476,7 +472,7 @@ class Guard(Container):
         """Its state's, and its timer."""
         if self._preempt_requested or self.fired is not None:
             return None
-        if self.state.status is not _RUNNING:
+        if self.state.status is not Status.RUNNING:
             return None
         wake = self.state.wake(now)
         return None if wake is None else wake.until(self._deadline)
@@ -494,13 +490,13 @@ class Guard(Container):
             self.state.stop(now)
             return self.finish(self.trigger_outcome)
         status = self.state.tick(now)
-        if status is _FAILED:
+        if status is Status.FAILED:
             return self.fail(f"{self.state.name}: {self.state.error}")
-        if status is _DONE:
+        if status is Status.DONE:
             if self.state.outcome == PREEMPTED:
-                self.state.status = _INVALID  # a guard never services it: it climbs
+                self.state.status = Status.INVALID  # a guard never services it: it climbs
             return self.finish(self.state.outcome or "")
-        return _RUNNING
+        return Status.RUNNING
 
     def on_pause(self, now: datetime) -> None:
         if self._deadline is not None:

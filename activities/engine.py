@@ -64,13 +64,6 @@ class Status(Enum):
     """Could not go on (a robot command failed or timed out): ``Node.error`` says why."""
 
 
-# Module constants, not ``Status.X``, in the code every tick runs: on Python 3.11 reading an
-# enum member through its class costs about 80 ns, and ``Status.X`` here and in the
-# containers made a running tick of bench/bench_behaviors.py's three-level machine
-# 2.7 times as long (3.1 µs, not 1.15 µs, CPU time).
-_INVALID, _RUNNING, _DONE, _FAILED = Status.INVALID, Status.RUNNING, Status.DONE, Status.FAILED
-
-
 @dataclass(slots=True)
 class Wake:
     """What a waiting machine waits for: the first tick at or after ``deadline``, or the
@@ -248,7 +241,7 @@ class Node:
         self.outcomes = tuple(outcomes)
         self.rt = rt
         self.io = io or Io()
-        self._status = _INVALID
+        self._status = Status.INVALID
         self.outcome: str | None = None
         self.error: str | None = None
         self.paused = False
@@ -318,15 +311,15 @@ class Node:
         a cleanup transition of its first state still runs.
         """
         status = self._status
-        if status is _DONE or status is _FAILED:
+        if status is Status.DONE or status is Status.FAILED:
             return status
         if self.paused:
-            return _RUNNING
-        if status is _INVALID:
+            return Status.RUNNING
+        if status is Status.INVALID:
             if self._preempt_requested and not self.is_container:
                 self._preempt_requested = False
-                return self._end(now, _DONE, PREEMPTED, enter_terminate=False)
-            self.status = _RUNNING
+                return self._end(now, Status.DONE, PREEMPTED, enter_terminate=False)
+            self.status = Status.RUNNING
             self.outcome = None
             self.error = None
             self.paused = False
@@ -340,17 +333,17 @@ class Node:
                 self.forward_preempt()
             else:
                 self.stop(now)
-                return self._end(now, _DONE, PREEMPTED, enter_terminate=False)
+                return self._end(now, Status.DONE, PREEMPTED, enter_terminate=False)
         status = self.update(now)
-        if status is _RUNNING:
-            return _RUNNING
-        if status is _DONE:
+        if status is Status.RUNNING:
+            return Status.RUNNING
+        if status is Status.DONE:
             if self.outcome is None:
                 self.outcome = self.outcomes[0] if self.outcomes else "done"
-            return self._end(now, _DONE, self.outcome)
-        if status is _FAILED:
-            return self._end(now, _FAILED, None)
-        return _RUNNING
+            return self._end(now, Status.DONE, self.outcome)
+        if status is Status.FAILED:
+            return self._end(now, Status.FAILED, None)
+        return Status.RUNNING
 
     def _end(
         self, now: datetime, status: Status, outcome: str | None, enter_terminate: bool = True
@@ -365,12 +358,12 @@ class Node:
     def fail(self, error: str) -> Status:
         """For ``update``: end FAILED with ``error``."""
         self.error = error
-        return _FAILED
+        return Status.FAILED
 
     def finish(self, outcome: str) -> Status:
         """For ``update``: end DONE with ``outcome``."""
         self.outcome = outcome
-        return _DONE
+        return Status.DONE
 
     def stop(self, now: datetime) -> None:
         """Stop from outside, at every depth below: terminate(INVALID).
@@ -378,11 +371,11 @@ class Node:
         A preemption request not serviced yet is dropped with the run it was meant
         for (SMACH and YASMIN clear it too): the next entry starts afresh.
         """
-        if self.status is _RUNNING:
+        if self.status is Status.RUNNING:
             for child in self.active_children():
                 child.stop(now)
-            self.terminate(now, _INVALID)
-        self.status = _INVALID
+            self.terminate(now, Status.INVALID)
+        self.status = Status.INVALID
         self.paused = False
         self._preempt_requested = False
 
@@ -391,7 +384,7 @@ class Node:
 
     def reset(self) -> None:
         """Forget a finished run so the state can be entered again."""
-        self.status = _INVALID
+        self.status = Status.INVALID
         self.outcome = None
         self.error = None
 
@@ -401,7 +394,7 @@ class Node:
         Asking again before that tick is the same request; asking a finished state
         does nothing.
         """
-        if self.status is not _DONE and self.status is not _FAILED:
+        if self.status is not Status.DONE and self.status is not Status.FAILED:
             self._preempt_requested = True
             self.rt.epoch += 1
 
@@ -410,7 +403,7 @@ class Node:
         return self._preempt_requested
 
     def pause(self, now: datetime) -> None:
-        if self.status is _RUNNING and not self.paused:
+        if self.status is Status.RUNNING and not self.paused:
             for child in self.active_children():
                 child.pause(now)
             self.paused = True
@@ -420,7 +413,7 @@ class Node:
     def resume(self, now: datetime) -> None:
         """Thaw this state and those below; a leaf with a preemption request waiting
         does not restart its commands (its next tick ends it ``preempted``)."""
-        if self.status is _RUNNING and self.paused:
+        if self.status is Status.RUNNING and self.paused:
             self.paused = False
             self.rt.epoch += 1
             if self.is_container or not self._preempt_requested:
@@ -437,7 +430,7 @@ class Node:
 
     def deliver(self, event: Event) -> bool:
         """Offer ``event`` to this state and the states active below it."""
-        if self.status is not _RUNNING or self.paused:
+        if self.status is not Status.RUNNING or self.paused:
             return False
         if self.on_event(event):
             self.rt.epoch += 1
@@ -448,7 +441,7 @@ class Node:
         """The running states below this one (``A/B,C``)."""
         parts = []
         for child in self.active_children():
-            if child.status is _RUNNING:
+            if child.status is Status.RUNNING:
                 below = child.active_path()
                 parts.append(f"{child.name}/{below}" if below else child.name)
         return ",".join(parts)
@@ -460,7 +453,7 @@ class Node:
             "kind": self.kind,
             "outcomes": list(self.outcomes),
             "status": self.status.value,
-            "active": self.status is _RUNNING,
+            "active": self.status is Status.RUNNING,
         }
         if self.paused:
             out["paused"] = True
