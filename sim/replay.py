@@ -258,8 +258,10 @@ def _replay(
             return max(0.0, (t - start).total_seconds())
 
         ticks = sorted(set(tick_times))
+        urgent = _off_grid(ticks)
         for at, key, parsed in inputs:
-            sim.at(offset(_feed_time(key, at, ticks)), lambda k=key, m=parsed: sim.feed(k, m))  # type: ignore[misc]
+            fed = _feed_time(key, at, ticks, urgent)
+            sim.at(offset(fed), lambda k=key, m=parsed: sim.feed(k, m))  # type: ignore[misc]
         if ticks:
 
             def recorded_tick() -> None:
@@ -289,29 +291,50 @@ def _replay(
     )
 
 
-URGENT_BEFORE = timedelta(milliseconds=20)
-URGENT_AFTER = timedelta(milliseconds=10)
-"""Clock slack between the daemon and the recorder for urgent inputs.
+URGENT_WINDOW = timedelta(milliseconds=150)
+"""How far apart the recorder may log an urgent input and the daemon tick on it.
 
 Both receive the same sample; the daemon ticks at once on an urgent input (touch,
-speech, screen, request). That tick normally starts just after the recorder logs the
-input (within ``URGENT_BEFORE``) and the input is fed just before it; but it can also
-start a little before the recorder logs it: then, if no tick follows closely, the
-input is fed before the last tick within ``URGENT_AFTER``. Other inputs wait for the
-next tick after them, as in the daemon.
+speech, screen, request), and the recorder logs it at about the same time, before or
+after that tick by the two processes' lag (tens of milliseconds on a loaded machine).
+Such a tick is off the loop's 2 Hz grid (the loop ticks against monotonic deadlines, so
+its regular ticks keep one phase): the input is fed at the off-grid tick nearest to its
+log time within this window (before it, if the tick came first), else at the nearest
+tick within it. Other inputs wait for the next tick after them, as in the daemon.
 """
 
+GRID_SLACK_S = 0.03
+"""A tick further than this from the regular ticks' phase is an urgent one."""
 
-def _feed_time(key: str, at: datetime, ticks: list[datetime]) -> datetime:
-    """When to feed an input logged at ``at``, given the recorded tick times."""
+
+def _off_grid(ticks: list[datetime], period_s: float = 0.5) -> set[datetime]:
+    """The ticks off the phase most ticks share: those urgent inputs started."""
+    if not ticks:
+        return set()
+    phases = [t.timestamp() % period_s for t in ticks]
+    bins = [round(phase / 0.01) for phase in phases]
+    mode = max(set(bins), key=bins.count) * 0.01
+
+    def distance(phase: float) -> float:
+        d = abs(phase - mode) % period_s
+        return min(d, period_s - d)
+
+    return {t for t, phase in zip(ticks, phases, strict=True) if distance(phase) > GRID_SLACK_S}
+
+
+def _feed_time(key: str, at: datetime, ticks: list[datetime], urgent: set[datetime]) -> datetime:
+    """When to feed an input logged at ``at``, given the recorded tick times and which
+    of them are off the grid (see :data:`URGENT_WINDOW`)."""
     if key not in keys.URGENT_INPUTS:
         return at
-    after = bisect.bisect_left(ticks, at)
-    if after < len(ticks) and ticks[after] - at <= URGENT_BEFORE:
+    low = bisect.bisect_left(ticks, at - URGENT_WINDOW)
+    high = bisect.bisect_right(ticks, at + URGENT_WINDOW)
+    near = ticks[low:high]
+    pool = [t for t in near if t in urgent] or near
+    if not pool:
         return at
-    if after > 0 and at - ticks[after - 1] <= URGENT_AFTER:
-        return ticks[after - 1]
-    return at
+    tick = min(pool, key=lambda t: (abs((t - at).total_seconds()), t < at))
+    return at if tick >= at else tick
 
 
 def _skip_running_at_start(

@@ -136,3 +136,24 @@ def test_a_missing_decision_is_reported_as_nothing_recorded(
     assert [(d.time, d.recorded) for d in report.differences] == [(last.time, [])]
     assert len(report.differences[0].replayed) == 1
     assert "recorded nothing | replayed" in report.text()
+
+
+def test_an_urgent_input_is_fed_at_its_own_tick_whichever_process_lagged() -> None:
+    """The recorder may log a request a little before or after the daemon's urgent tick
+    on it (tens of milliseconds on a loaded machine); the replay finds that tick off the
+    2 Hz grid, not a regular tick nearby."""
+    from datetime import UTC, datetime, timedelta
+
+    from sim.replay import _feed_time, _off_grid
+
+    t0 = datetime(2026, 11, 27, 21, 39, 50, 386000, tzinfo=UTC)
+    regular = [t0 + timedelta(seconds=0.5 * k) for k in range(8)]
+    urgent_tick = t0 + timedelta(seconds=2.539)  # a request, 39 ms after a regular tick
+    ticks = sorted([*regular, urgent_tick])
+    urgent = _off_grid(ticks)
+    assert urgent == {urgent_tick}
+    late = urgent_tick + timedelta(milliseconds=60)  # the recorder lagged
+    assert _feed_time("request", late, ticks, urgent) == urgent_tick
+    early = urgent_tick - timedelta(milliseconds=30)  # the daemon lagged: fed just before
+    assert _feed_time("request", early, ticks, urgent) == early
+    assert _feed_time("perception/user", late, ticks, urgent) == late  # not urgent
