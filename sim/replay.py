@@ -19,6 +19,7 @@ import bisect
 import difflib
 import tempfile
 import time
+from collections import Counter
 from dataclasses import dataclass, field
 from datetime import UTC, datetime, timedelta
 from pathlib import Path, PurePosixPath
@@ -258,7 +259,7 @@ def _replay(
             return max(0.0, (t - start).total_seconds())
 
         ticks = sorted(set(tick_times))
-        urgent = _off_grid(ticks)
+        urgent = _off_grid(ticks, sim.settings.controller.tick_period_s)
         for at, key, parsed in inputs:
             fed = _feed_time(key, at, ticks, urgent)
             sim.at(offset(fed), lambda k=key, m=parsed: sim.feed(k, m))  # type: ignore[misc]
@@ -307,13 +308,13 @@ GRID_SLACK_S = 0.03
 """A tick further than this from the regular ticks' phase is an urgent one."""
 
 
-def _off_grid(ticks: list[datetime], period_s: float = 0.5) -> set[datetime]:
+def _off_grid(ticks: list[datetime], period_s: float) -> set[datetime]:
     """The ticks off the phase most ticks share: those urgent inputs started."""
     if not ticks:
         return set()
     phases = [t.timestamp() % period_s for t in ticks]
-    bins = [round(phase / 0.01) for phase in phases]
-    mode = max(set(bins), key=bins.count) * 0.01
+    # the phase most ticks share, to 10 ms
+    mode = Counter(round(phase, 2) for phase in phases).most_common(1)[0][0]
 
     def distance(phase: float) -> float:
         d = abs(phase - mode) % period_s

@@ -150,7 +150,7 @@ def test_an_urgent_input_is_fed_at_its_own_tick_whichever_process_lagged() -> No
     regular = [t0 + timedelta(seconds=0.5 * k) for k in range(8)]
     urgent_tick = t0 + timedelta(seconds=2.539)  # a request, 39 ms after a regular tick
     ticks = sorted([*regular, urgent_tick])
-    urgent = _off_grid(ticks)
+    urgent = _off_grid(ticks, 0.5)
     assert urgent == {urgent_tick}
     late = urgent_tick + timedelta(milliseconds=60)  # the recorder lagged
     assert _feed_time("request", late, ticks, urgent) == urgent_tick
