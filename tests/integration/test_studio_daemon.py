@@ -30,7 +30,12 @@ import zenoh
 from dms.rules import loader as rules_loader
 from tests.integration.harness import Collector, DaemonProcess, client_session, put
 from tests.integration.test_studio import Studio, running_studio, shipped_copy
-from tests.integration.viewer_harness import CHROMIUM, CHROMIUM_ARGS, browser_missing
+from tests.integration.viewer_harness import (
+    CHROMIUM,
+    CHROMIUM_ARGS,
+    browser_missing,
+    watch_lit,
+)
 
 EXAMPLE_RULES = Path(rules_loader.__file__).parent / "examples" / "decisions.dmsl"
 WAIT_MS = 20_000
@@ -114,22 +119,6 @@ def trial_text(page: Any, words: str) -> None:
     except Exception:
         shown = page.inner_text("#trial-state"), page.inner_text("#status"), page.inner_text("#log")
         raise AssertionError(f"no {words!r} in the trial's line: {shown}") from None
-
-
-def watch_lit(page: Any) -> None:
-    """Keep, in ``window.litSeen``, each state lit on the canvas, in turn."""
-    page.evaluate(
-        """() => {
-          window.litSeen = [];
-          const box = document.getElementById('trial-state');
-          new MutationObserver(() => {
-            const path = box.dataset.path;
-            const lit = path && document.querySelector(`.state.lit[data-path="${path}"]`);
-            const last = window.litSeen[window.litSeen.length - 1];
-            if (lit && last !== path) window.litSeen.push(path);
-          }).observe(box, {attributes: true, childList: true, characterData: true, subtree: true});
-        }"""
-    )
 
 
 def test_a_behavior_built_from_nothing_runs_on_the_simulated_mini_and_on_the_daemon(

@@ -18,7 +18,12 @@ from typing import Any
 import pytest
 
 from tests.integration.test_studio import Studio, running_studio, shipped_copy
-from tests.integration.viewer_harness import CHROMIUM, CHROMIUM_ARGS, browser_missing
+from tests.integration.viewer_harness import (
+    CHROMIUM,
+    CHROMIUM_ARGS,
+    browser_missing,
+    watch_lit,
+)
 
 SCREENSHOT = Path(__file__).resolve().parents[2] / "docs" / "studio.png"
 WAIT_MS = 15_000
@@ -117,18 +122,7 @@ def test_a_behavior_built_with_clicks_and_typing_is_saved_and_loads(
     text = saved.read_text()
     assert "transitions: {done: ASK}" in text and '"yes": done' in text, text
 
-    page.evaluate(
-        """() => {
-          window.litSeen = [];
-          const box = document.getElementById('trial-state');
-          new MutationObserver(() => {
-            const path = box.dataset.path;
-            const lit = path && document.querySelector(`.state.lit[data-path="${path}"]`);
-            const last = window.litSeen[window.litSeen.length - 1];
-            if (lit && last !== path) window.litSeen.push(path);
-          }).observe(box, {attributes: true, childList: true, characterData: true, subtree: true});
-        }"""
-    )
+    watch_lit(page)
     page.click("#run-button")
     page.wait_for_function("document.getElementById('trial-state').textContent.includes('waiting')")
     page.fill("#answer-input", "yes please")

@@ -147,3 +147,19 @@ def browser_missing() -> str | None:
     except ImportError:
         return "the playwright package is not installed (pip install -e '.[dev]')"
     return None
+
+
+def watch_lit(page: Any) -> None:
+    """Keep, in ``window.litSeen``, each state lit on the canvas, in turn."""
+    page.evaluate(
+        """() => {
+          window.litSeen = [];
+          const box = document.getElementById('trial-state');
+          new MutationObserver(() => {
+            const path = box.dataset.path;
+            const lit = path && document.querySelector(`.state.lit[data-path="${path}"]`);
+            const last = window.litSeen[window.litSeen.length - 1];
+            if (lit && last !== path) window.litSeen.push(path);
+          }).observe(box, {attributes: true, childList: true, characterData: true, subtree: true});
+        }"""
+    )
