@@ -42,6 +42,8 @@ AGENDA_POLL_S = POLL_S
 """How often a robot's agenda looks for items added elsewhere (another robot, the CLI)."""
 WRITER_BUSY_TIMEOUT_S = 1.0
 """SQLite lock wait of the daemon's store writer: past it the writes are spooled."""
+TRAINING_STOP_WAIT_S = 10.0
+"""How long closing waits for a retraining under way (it reads the store being closed)."""
 
 
 @dataclass
@@ -74,6 +76,13 @@ class Stack:
             self.chooser.retrain()
 
     def close(self) -> None:
+        # A retraining under way reads the store and runs native code (LAPACK): it ends
+        # before the store closes and before the interpreter is torn down around it.
+        if self.chooser is not None and not self.chooser.wait_retrained(TRAINING_STOP_WAIT_S):
+            log.warning(
+                "closing while the preference model still trains (past %.0f s)",
+                TRAINING_STOP_WAIT_S,
+            )
         # The profile writes first: what cannot be written is spooled and reported.
         profiles = self.controller.deps.profiles
         if profiles is not None:

@@ -15,6 +15,8 @@ the watchdog from the tick loop (:mod:`dms.notify`). Its log goes to stderr at
 
 from __future__ import annotations
 
+import contextlib
+import faulthandler
 import logging
 import random
 import signal
@@ -554,6 +556,11 @@ def run_daemon(
     so that the daemon does not import ``sim``.
     """
     setup_logging(settings.log_level, settings.log_format, robot_id=settings.robot_id)
+    # A crash in native code (a segmentation fault) leaves every thread's Python stack on
+    # stderr, in the daemon's log, instead of only a signal number in the service manager.
+    # A stderr that is no file (captured by a caller in the same process) goes without.
+    with contextlib.suppress(OSError, ValueError, RuntimeError):
+        faulthandler.enable()
     daemon = Daemon(settings, print_decisions=print_decisions, sim_robot=sim_robot)
 
     stopped_by: list[int] = []

@@ -110,6 +110,27 @@ def wait_token(
         sub.undeclare()
 
 
+@contextmanager
+def token_deleted(
+    session: zenoh.Session, key: str, timeout: float = READY_TIMEOUT_S
+) -> Iterator[None]:
+    """Watch liveliness token ``key``, run the body (which ends it: a signal to the
+    daemon), then wait for its deletion. Watching first, since a deletion that comes
+    before the watch is never seen."""
+    deleted = threading.Event()
+
+    def on_token(sample: zenoh.Sample) -> None:
+        if sample.kind == zenoh.SampleKind.DELETE:
+            deleted.set()
+
+    sub = session.liveliness().declare_subscriber(key, on_token)
+    try:
+        yield
+        assert deleted.wait(timeout), f"token {key} stayed"
+    finally:
+        sub.undeclare()
+
+
 class DaemonProcess:
     """``dms run`` in a subprocess on a free loopback port and a SQLite file."""
 
@@ -178,6 +199,8 @@ class DaemonProcess:
         self.proc.send_signal(signal.SIGTERM)
         code = self.proc.wait(timeout)
         self._log_file.close()
+        if code != 0:  # shown with the failing assertion on the code
+            print(f"dms run exited {code}; the end of its log:\n{self.log.read_text()[-4000:]}")
         return code
 
     def kill(self) -> None:

@@ -6,6 +6,8 @@ The test's session acts as perception and as a caregiver's app, on 127.0.0.1 onl
 from __future__ import annotations
 
 import itertools
+import re
+import signal
 import threading
 from datetime import datetime
 from pathlib import Path
@@ -21,6 +23,7 @@ from tests.integration.harness import (
     put,
     query,
     running_daemon,
+    token_deleted,
 )
 
 pytestmark = pytest.mark.integration
@@ -208,20 +211,25 @@ def test_sigterm_stops_the_activity_and_exits_zero(tmp_path: Path) -> None:
         decisions = Collector(session, "robots/mini/dms/decision")
         put(session, "request", {"action": "start", "activity": "dance", "by": "test"})
         decisions.wait_for(lambda d: d["activity"] == "dance" and d["action"] == "start")
-        gone = threading.Event()
-
-        def on_token(sample: zenoh.Sample) -> None:
-            if sample.kind == zenoh.SampleKind.DELETE:
-                gone.set()
-
-        sub = session.liveliness().declare_subscriber("robots/mini/alive/dms", on_token)
-        assert daemon.terminate() == 0
-        assert gone.wait(10)
-        sub.undeclare()
+        with token_deleted(session, "robots/mini/alive/dms"):
+            assert daemon.terminate() == 0
         decisions.wait_for(lambda d: d["action"] == "cancel" and d["reason"] == "shutdown")
     finally:
         daemon.kill()
         session.close()
+
+
+def test_a_crash_in_native_code_leaves_every_threads_stack_in_the_log(tmp_path: Path) -> None:
+    """A segmentation fault (here sent as a signal) ends the daemon, and its log says
+    where each thread was, in Python, rather than nothing at all."""
+    with running_daemon(tmp_path) as (daemon, session):
+        assert daemon.proc is not None
+        Collector(session, "robots/mini/dms/state").wait_count(1)  # the loop is running
+        daemon.proc.send_signal(signal.SIGSEGV)
+        assert daemon.proc.wait(20) == -signal.SIGSEGV
+        log = daemon.log.read_text()
+        assert "Fatal Python error: Segmentation fault" in log, log[-2000:]
+        assert re.search(r"dms/daemon\.py\", line \d+ in loop", log), log[-2000:]
 
 
 def test_a_restart_keeps_profiles(tmp_path: Path) -> None:

@@ -26,7 +26,13 @@ import pytest
 import zenoh
 
 from dms import secure
-from tests.integration.harness import Collector, DaemonProcess, free_port, wait_token
+from tests.integration.harness import (
+    Collector,
+    DaemonProcess,
+    free_port,
+    token_deleted,
+    wait_token,
+)
 
 pytestmark = pytest.mark.integration
 
@@ -300,9 +306,10 @@ def test_sigterm_still_stops_a_secured_daemon(tmp_path: Path) -> None:
     try:
         daemon.start(app)
         assert daemon.proc is not None
-        daemon.proc.send_signal(signal.SIGTERM)
-        wait_token(app, f"{ROBOT}/alive/dms", present=False)
-        assert daemon.proc.wait(20) == 0
+        with token_deleted(app, f"{ROBOT}/alive/dms"):
+            daemon.proc.send_signal(signal.SIGTERM)
+        code = daemon.proc.wait(20)
+        assert code == 0, daemon.log.read_text()[-4000:]
     finally:
         daemon.kill()
         app.close()

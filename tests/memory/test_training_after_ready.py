@@ -9,6 +9,7 @@ from __future__ import annotations
 import random
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import pytest
@@ -99,3 +100,38 @@ def test_importing_the_daemon_loads_neither_scikit_learn_nor_matplotlib() -> Non
     code = f"import sys, dms.daemon, dms.cli; print(sorted(m for m in {heavy} if m in sys.modules))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_closing_waits_for_a_retraining_under_way(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A retraining reads the store and runs native code: closing lets it end first,
+    rather than closing the store under it and exiting with its thread in LAPACK."""
+    url = f"sqlite:///{tmp_path / 'dms.db'}"
+    entered, release = threading.Event(), threading.Event()
+    train = PreferenceModel.train
+
+    def held_train(store: ProfileStore) -> PreferenceModel:
+        entered.set()
+        assert release.wait(60)
+        return train(store)
+
+    monkeypatch.setattr(PreferenceModel, "train", held_train)
+    daemon = Daemon(
+        Settings(db=url, seed=1),
+        print_decisions=False,
+        bus=InMemoryBus(),
+        sim_robot=lambda seed: SimRobot(rng_seed=seed),
+    )
+    chooser = daemon.stack.chooser
+    assert chooser is not None
+    daemon.start()
+    assert entered.wait(60)
+    closer = threading.Thread(target=daemon.close)
+    closer.start()
+    closer.join(0.5)
+    assert closer.is_alive()  # still waiting for the training
+    release.set()
+    closer.join(60)
+    assert not closer.is_alive() and chooser.wait_retrained(0)
+    assert chooser.model.training_size > 0  # it finished, from the store still open
