@@ -33,6 +33,7 @@ from agenda.zenoh_api import ALL_USERS, handle_query
 from dms.assembly import Stack, build_stack
 from dms.bus import ZenohBus, make_config
 from dms.config import Settings
+from dms.console import format_decision
 from dms.controller import TickRecord
 from dms.inputs import InputRejected, parse_input
 from dms.kernel import keys
@@ -40,7 +41,6 @@ from dms.kernel.clock import Clock, RealClock, Ticker, WallSteps, describe_step,
 from dms.kernel.errors import ConfigError, DmsError
 from dms.kernel.ids import InvalidIdentifier, check_identifier, printable
 from dms.kernel.messages import (
-    Decision,
     DmsState,
     ErrorReport,
     Request,
@@ -77,38 +77,6 @@ NOT_SERVED = (
 
 class QueryRefused(DmsError):
     """A query the daemon answers with an error reply saying why (not a fault)."""
-
-
-def format_decision(decision: Decision) -> str:
-    """One console line per decision: time, action, activity, reason, who, why.
-
-    The detail may quote other processes (a request's ``by``, an utterance): its control
-    characters are escaped, so that it cannot forge a line of the console log.
-    """
-    who = f" by {decision.chosen_by}" if decision.chosen_by else ""
-    what = f" {decision.activity}" if decision.activity else ""
-    detail = f" ({printable(decision.detail)})" if decision.detail else ""
-    why = short_why(decision)
-    line = f"{decision.time[11:23]} {decision.action:<8}{what} [{decision.reason}{who}]{detail}"
-    return f"{line} <- {why}" if why else line
-
-
-def short_why(decision: Decision) -> str:
-    """The ``why`` of a decision in a few words, for the console (``dms/decision`` has all)."""
-    why = decision.why
-    if why is None:
-        return ""
-    parts = []
-    if why.rule is not None:
-        where = f" {Path(why.rule.file).name}:{why.rule.line}" if why.rule.file else ""
-        parts.append(f"rule {why.rule.component}{where}")
-    if why.mode is not None and why.mode.draw is not None and why.mode.p_user is not None:
-        parts.append(f"draw {why.mode.draw:.2f} vs p_user {why.mode.p_user:.2f}")
-    if why.preferences:
-        parts.append("likes " + ", ".join(f"{p.activity} {p.score:.2f}" for p in why.preferences))
-    if why.motivation is not None and decision.chosen_by == "motivation":
-        parts.append(f"dominant {why.motivation.dominant or 'none'}")
-    return "; ".join(parts)
 
 
 def config_snapshot(settings: Settings, library: BehaviorLibrary) -> dict[str, Any]:
@@ -556,9 +524,8 @@ def run_daemon(
     so that the daemon does not import ``sim``.
     """
     setup_logging(settings.log_level, settings.log_format, robot_id=settings.robot_id)
-    # A crash in native code (a segmentation fault) leaves every thread's Python stack on
-    # stderr, in the daemon's log, instead of only a signal number in the service manager.
-    # A stderr that is no file (captured by a caller in the same process) goes without.
+    # A crash in native code leaves every thread's Python stack in the log (stderr); a
+    # stderr that is no file (captured by a caller in the same process) goes without.
     with contextlib.suppress(OSError, ValueError, RuntimeError):
         faulthandler.enable()
     daemon = Daemon(settings, print_decisions=print_decisions, sim_robot=sim_robot)

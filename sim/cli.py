@@ -53,7 +53,7 @@ def run_command(
     if as_json:
         _print_json(result.to_json())
     else:
-        from dms.daemon import format_decision
+        from dms.console import format_decision
 
         for timed in result.decisions:
             typer.echo(f"{timed.t:8.1f}s  {format_decision(timed.decision)}")
