@@ -39,7 +39,8 @@ from starlette.staticfiles import StaticFiles
 
 from dms.kernel.body import NEUTRAL
 from dms.studio.auth import TokenGuard
-from dms.studio.folder import Folder, StudioError
+from dms.studio.errors import StudioError
+from dms.studio.folder import Folder
 from dms.studio.link import DaemonLink
 from dms.studio.palette import palette
 from dms.studio.rules import RulesFiles

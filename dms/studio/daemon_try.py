@@ -37,7 +37,7 @@ from activities.spec import check_references, parse_text
 from activities.stepper import parse_input
 from dms.kernel.errors import DmsError
 from dms.studio.check import WHERE, document_text
-from dms.studio.folder import StudioError
+from dms.studio.errors import StudioError
 from dms.studio.trial import one_state
 
 if TYPE_CHECKING:

@@ -19,21 +19,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from dms.kernel.errors import DmsError
 from dms.studio.check import Report, check_document, folder_specs
+from dms.studio.errors import StudioError
 from dms.studio.roundtrip import edited_text, load, new_text, to_plain
 
 NAME_RE = re.compile(r"^[a-z][a-z0-9_]*$")
 """A behavior's name: its file's name, and what the rules and the daemon call it."""
 DRAFTS = "drafts"
-
-
-class StudioError(DmsError):
-    """A request the studio refuses, with the HTTP status that says why."""
-
-    def __init__(self, message: str, status: int = 400) -> None:
-        super().__init__(message)
-        self.status = status
 
 
 def digest(data: bytes) -> str:

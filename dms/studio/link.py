@@ -16,7 +16,7 @@ from typing import Any
 from dms.bus import ZenohClient
 from dms.kernel import keys
 from dms.studio.daemon_try import TRY_KEY, TRY_STATE_KEY
-from dms.studio.folder import StudioError
+from dms.studio.errors import StudioError
 
 QUERY_TIMEOUT_S = 5.0
 

@@ -17,7 +17,8 @@ from typing import Any
 from dms.rules.loader import parse_all
 from dms.rules.problems import Problem
 from dms.rules.verifier import activation_warnings
-from dms.studio.folder import StudioError, digest, write_atomically
+from dms.studio.errors import StudioError
+from dms.studio.folder import digest, write_atomically
 
 
 @dataclass(frozen=True)

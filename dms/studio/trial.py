@@ -14,7 +14,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable, Mapping
 from datetime import datetime
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from activities.errors import BehaviorError
 from activities.library import BehaviorLibrary
@@ -24,7 +24,10 @@ from dms.kernel.body import NEUTRAL, body_frames
 from dms.kernel.frames import FrameStore, pose
 from dms.kernel.ports import RobotPort
 from dms.studio.check import WHERE, document_text, parse_message, state_outcomes, walk
-from dms.studio.folder import Folder, StudioError
+from dms.studio.errors import StudioError
+
+if TYPE_CHECKING:
+    from dms.studio.folder import Folder
 
 RobotFactory = Callable[[int], RobotPort]
 """Makes the robot a trial drives, from its seed (the composition root passes the
