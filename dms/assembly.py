@@ -15,7 +15,7 @@ import zoneinfo
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from sqlalchemy.engine import make_url
 
@@ -30,11 +30,13 @@ from dms.kernel.expression import ExpressionArbiter
 from dms.kernel.messages import RobotCommand
 from dms.kernel.ports import JointReporter, RobotPort
 from dms.profiles import ProfileService
-from dms.rules import LiveRules, RulesError
 from dms.scene import Scene
 from memory import ActivityChooser, PreferenceModel, ProfileError, ProfileStore, QuestionBank
 from memory.db import as_url, default_url
 from motivation import MotivationConfigError, MotivationModel, load_config
+
+if TYPE_CHECKING:
+    from dms.rules import LiveRules
 
 log = logging.getLogger(__name__)
 
@@ -144,6 +146,9 @@ def build_stack(
         raise ConfigError(f"behaviors: {error}") from None
     rules: LiveRules | None = None
     if settings.rules.files:
+        # The rules language (its parser) loads only for a robot that has rules files.
+        from dms.rules import LiveRules, RulesError
+
         try:
             rules = LiveRules(settings.rules.files)
         except RulesError as error:

@@ -5,16 +5,18 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from activities import BehaviorLibrary
 from agenda import Agenda
 from dms.kernel.expression import ExpressionArbiter
 from dms.profiles import ProfileService
-from dms.rules import LiveRules
 from dms.scene import Scene
 from memory import ActivityChooser, QuestionBank
 from motivation import MotivationModel
+
+if TYPE_CHECKING:
+    from dms.rules import LiveRules
 
 log = logging.getLogger(__name__)
 

@@ -54,7 +54,7 @@ def test_ctrl_c_right_after_spawn_is_quiet(tmp_path: Path) -> None:
     assert "Traceback" not in stderr, stderr
 
 
-@pytest.mark.parametrize("module", ["sqlalchemy.orm", "lark", "dms.daemon"])
+@pytest.mark.parametrize("module", ["sqlalchemy.orm", "activities.library", "dms.daemon"])
 def test_ctrl_c_while_importing_is_quiet(tmp_path: Path, module: str) -> None:
     proc = spawn(tmp_path, "-X", "importtime")
     lines = StderrLines(proc)
@@ -88,6 +88,20 @@ def test_ctrl_c_once_ready_stops_cleanly_with_130(tmp_path: Path) -> None:
     code, stderr = interrupt(proc, lines)
     assert code == INTERRUPTED, stderr
     assert "Traceback" not in stderr, stderr
+
+
+def test_without_rules_files_it_is_ready_without_the_rules_language(tmp_path: Path) -> None:
+    """What only some robots use loads when they use it: the rules language (a robot
+    with rules files), the studio's YAML writer (a saved behavior), not on the start."""
+    proc = spawn(tmp_path, "-X", "importtime")
+    lines = StderrLines(proc)
+    lines.wait_for("ready on", READY_TIMEOUT_S)
+    code, stderr = interrupt(proc, lines)
+    assert code == INTERRUPTED, stderr
+    before_ready = stderr.split("ready on")[0].splitlines()
+    imported = {line.rsplit("|", 1)[1].strip() for line in before_ready if "import time:" in line}
+    assert {"dms.daemon", "dms.studio.daemon_try"} <= imported  # the log is read right
+    assert not {"lark", "dms.rules", "ruamel.yaml"} & imported
 
 
 def test_version_and_help_load_no_package_of_the_stack() -> None:
