@@ -58,7 +58,7 @@ class ItemSpec(BaseModel):
     item still waits for its user before it is recorded as missed.
     """
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", defer_build=True)
 
     user_id: str
     kind: Literal["event", "reminder"]

@@ -151,7 +151,7 @@ def validate_fields(fields: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str
 class ActivityScore(BaseModel):
     """The user's own evidence about one activity."""
 
-    model_config = ConfigDict(frozen=True)
+    model_config = ConfigDict(frozen=True, defer_build=True)
 
     feedback_sum: float = 0.0
     feedback_count: int = 0
@@ -177,7 +177,7 @@ class ActivityScore(BaseModel):
 class Profile(BaseModel):
     """A frozen snapshot of one user's profile: every field but the history."""
 
-    model_config = ConfigDict(frozen=True)
+    model_config = ConfigDict(frozen=True, defer_build=True)
 
     user_id: str
     created_at: datetime

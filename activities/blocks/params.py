@@ -30,7 +30,7 @@ class BlockParams(BaseModel):
     Unknown names are refused. Frozen: one instance may serve every entry of a state.
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, defer_build=True)
 
     PLACEHOLDERS: ClassVar[frozenset[str] | None] = None
     """The parameters that may be written as a placeholder; None: all of them (a block

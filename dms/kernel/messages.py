@@ -37,13 +37,13 @@ ParamValue = Annotated[str, StringConstraints(max_length=1024)] | bool | int | f
 class Inbound(BaseModel):
     """A message another process publishes to the daemon."""
 
-    model_config = ConfigDict(extra="ignore", strict=True, frozen=True)
+    model_config = ConfigDict(extra="ignore", strict=True, frozen=True, defer_build=True)
 
 
 class Outbound(BaseModel):
     """A message the daemon publishes."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, defer_build=True)
 
 
 class _OmitsUnset(Outbound):
@@ -176,7 +176,7 @@ class ScreenChoice(Inbound):
 class ProfileParams(Inbound):
     """``params/robot`` and ``params/env``: named values, merged into the profile."""
 
-    model_config = ConfigDict(extra="forbid", strict=True, frozen=True)
+    model_config = ConfigDict(extra="forbid", strict=True, frozen=True, defer_build=True)
     values: dict[ParamName, ParamValue] = Field(max_length=256)
 
     @classmethod
