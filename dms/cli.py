@@ -12,6 +12,7 @@ Each package's sub-app is imported only when its name is on the command line (se
 
 from __future__ import annotations
 
+import gc
 import os
 import signal
 import sys
@@ -406,6 +407,7 @@ def run(
 
     A setting comes from its flag, else its DMS_* variable, else the TOML, else its default.
     """
+    gc.disable()  # until ready: see run_daemon
     from dms.config import load_config
     from dms.daemon import run_daemon
 
