@@ -8,7 +8,8 @@
 - beside them, the time of a bare ``python -c "import numpy, sqlalchemy, zenoh, pydantic"``
   run before each start (``bare_import_s_median``), and the starts as multiples of it
   (``ready_vs_bare``, ``restart_vs_bare``; target <= 2): the machine's speed and load
-  cancel out;
+  cancel out; ``*_paired``: the median of each start over its own bare run, which also
+  cancels a load that drifts during the benchmark;
 - the daemon's resident memory (RSS, from ``/proc``) at ready, and after ``--idle-s``
   seconds idle (default 600: ten minutes) in one more start.
 
@@ -139,6 +140,12 @@ def stop(proc: subprocess.Popen[bytes], session: Any, folder: Any, keep: bool = 
         folder.cleanup()
 
 
+def paired(starts: list[float], bares: list[float]) -> float:
+    """The median of each start over the bare import run just before it: on a shared
+    machine whose load drifts during the run, each pair shares its moment."""
+    return round(statistics.median(t / b for t, b in zip(starts, bares, strict=True)), 2)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--starts", type=int, default=10, help="starts timed (default 10)")
@@ -200,6 +207,8 @@ def main() -> None:
         "bare_import_s_median": round(statistics.median(bare), 3),
         "ready_vs_bare": round(statistics.median(times) / statistics.median(bare), 2),
         "restart_vs_bare": round(statistics.median(restarts) / statistics.median(bare), 2),
+        "ready_vs_bare_paired": paired(times, bare[: args.starts]),
+        "restart_vs_bare_paired": paired(restarts, bare[args.starts :]),
         "rss_mb_at_ready_median": round(statistics.median(ready_rss), 1),
         "idle_s": args.idle_s,
         "rss_mb_at_ready": round(at_ready, 1),
