@@ -13,6 +13,7 @@ from __future__ import annotations
 import signal
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -25,12 +26,28 @@ INTERRUPTED = 130
 """The exit code after Ctrl-C (128 + SIGINT), as a shell reports it."""
 
 
+_SPAWNED: list[subprocess.Popen[str]] = []
+
+
+@pytest.fixture(autouse=True)
+def _no_process_left() -> Iterator[None]:
+    """A test that fails before its SIGINT leaves no daemon running behind it."""
+    yield
+    while _SPAWNED:
+        proc = _SPAWNED.pop()
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(10)
+
+
 def spawn(tmp: Path, *python_flags: str) -> subprocess.Popen[str]:
     """``dms run`` on a fresh SQLite file in ``tmp`` and a free loopback port."""
     command = [sys.executable, *python_flags, "-m", "dms.cli", "run", "--quiet"]
     command += ["--db", str(tmp / "dms.db"), "--listen", f"tcp/127.0.0.1:{free_port()}"]
     command += ["--seed", "1", "--log-level", "info"]
-    return subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    _SPAWNED.append(proc)
+    return proc
 
 
 def interrupt(proc: subprocess.Popen[str], lines: StderrLines) -> tuple[int, str]:
