@@ -407,33 +407,35 @@ def run(
 
     A setting comes from its flag, else its DMS_* variable, else the TOML, else its default.
     """
-    gc.disable()  # until ready: see run_daemon
-    from dms.config import load_config
-    from dms.daemon import run_daemon
+    gc.disable()  # until ready (run_daemon turns it back on there), or a refusal before
+    try:
+        from dms.config import load_config
+        from dms.daemon import run_daemon
 
-    settings = load_config(
-        config,
-        robot_id=robot_id,
-        db=db,
-        listen=listen,
-        connect=connect,
-        zenoh_config=zenoh_config,
-        robot=robot,
-        seed=seed,
-        log_level=log_level,
-        log_format=log_format,
-    )
-    if visitor is not None:
-        _check_persona(visitor)  # before the daemon says it is ready
-    raise typer.Exit(
-        run_daemon(
+        settings = load_config(
+            config,
+            robot_id=robot_id,
+            db=db,
+            listen=listen,
+            connect=connect,
+            zenoh_config=zenoh_config,
+            robot=robot,
+            seed=seed,
+            log_level=log_level,
+            log_format=log_format,
+        )
+        if visitor is not None:
+            _check_persona(visitor)  # before the daemon says it is ready
+        code = run_daemon(
             settings,
             visitor=visitor,
             print_decisions=not quiet,
             sim_robot=_simulated_robot,
             start_visitor=_start_visitor,
         )
-    )
+    finally:
+        gc.enable()
+    raise typer.Exit(code)
 
 
 def _check_persona(persona: str) -> None:

@@ -10,6 +10,7 @@ The quiet exit starts with ``dms.cli.main``: Python's own start and the import o
 
 from __future__ import annotations
 
+import gc
 import signal
 import subprocess
 import sys
@@ -133,3 +134,16 @@ def test_version_and_help_load_no_package_of_the_stack() -> None:
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True
     )
     assert done.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_a_run_refused_before_ready_leaves_the_garbage_collector_on(tmp_path: Path) -> None:
+    """``dms run`` starts with the collector off until ready; a caller in the same
+    process whose run is refused (here a configuration file that does not parse) gets
+    it back on."""
+    from dms.cli import main
+
+    bad = tmp_path / "dms.toml"
+    bad.write_text("seed = \n")
+    assert gc.isenabled()
+    assert main(["run", "--config", str(bad), "--db", str(tmp_path / "dms.db")]) == 1
+    assert gc.isenabled()
