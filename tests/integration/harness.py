@@ -91,21 +91,18 @@ wait returns as soon as the token comes (about 0.6 s on a quiet 2-core machine);
 margin is for a loaded CI machine, where a 20 s wait once failed a start that took 19.9 s."""
 
 
-def wait_token(
-    session: zenoh.Session, key: str, present: bool, timeout: float = READY_TIMEOUT_S
-) -> None:
-    """Wait until liveliness token ``key`` is (or is no longer) declared; returns as soon
-    as it is."""
+def wait_token(session: zenoh.Session, key: str, timeout: float = READY_TIMEOUT_S) -> None:
+    """Wait until liveliness token ``key`` is declared (already, or later); returns as
+    soon as it is. For a token's end, see :func:`token_deleted`."""
     event = threading.Event()
-    kind = zenoh.SampleKind.PUT if present else zenoh.SampleKind.DELETE
 
     def on_token(sample: zenoh.Sample) -> None:
-        if sample.kind == kind:
+        if sample.kind == zenoh.SampleKind.PUT:
             event.set()
 
-    sub = session.liveliness().declare_subscriber(key, on_token, history=present)
+    sub = session.liveliness().declare_subscriber(key, on_token, history=True)
     try:
-        assert event.wait(timeout), f"token {key} {'never appeared' if present else 'stayed'}"
+        assert event.wait(timeout), f"token {key} never appeared"
     finally:
         sub.undeclare()
 
@@ -189,7 +186,7 @@ class DaemonProcess:
             env=env,
         )
         try:
-            wait_token(session, f"robots/{self.robot_id}/alive/dms", present=True)
+            wait_token(session, f"robots/{self.robot_id}/alive/dms")
         except AssertionError:
             self.proc.kill()
             raise AssertionError(f"daemon never became ready:\n{self.log.read_text()}") from None

@@ -119,7 +119,7 @@ def is_sentinel(report: dict[str, Any]) -> bool:
 
 def assert_alive(daemon: Any, session: zenoh.Session, states: Collector) -> None:
     assert daemon.proc.poll() is None, daemon.log.read_text()[-3000:]
-    wait_token(session, ALIVE, present=True, timeout=10)
+    wait_token(session, ALIVE, timeout=10)
     mark = states.mark()
     states.wait_count(mark + 2, timeout=10)  # dms/state keeps coming
 

@@ -103,7 +103,7 @@ def daemon(
     process = _started(tmp, args, env or {})
     session = client_session(process.port)
     try:
-        wait_token(session, f"robots/{robot}/alive/dms", present=True)
+        wait_token(session, f"robots/{robot}/alive/dms")
         yield process, session
     finally:
         process.kill()
@@ -239,7 +239,7 @@ def test_systemd_ready_after_alive_and_watchdog_from_the_tick_loop(tmp_path: Pat
         # the link comes up, which on a loaded machine may be just after READY, so
         # this waits for it (a liveliness subscriber with history) instead of asking
         # once: a single query could race the link (it failed so, once, under load).
-        wait_token(session, "robots/fromtoml/alive/dms", present=True, timeout=10.0)
+        wait_token(session, "robots/fromtoml/alive/dms", timeout=10.0)
         assert ready["READY"] == "1" and ready["MAINPID"] == str(process.proc.pid)
         assert "fromtoml" in ready.get("STATUS", "")
         # The watchdog keeps coming from the tick loop, well within its 2 s period.

@@ -63,7 +63,7 @@ def test_the_readme_toml_runs_as_written(tmp_path: Path) -> None:
     )
     try:
         states = Collector(session, "robots/mini/dms/state")
-        wait_token(session, "robots/mini/alive/dms", present=True)
+        wait_token(session, "robots/mini/alive/dms")
         state = states.wait_for(lambda s: s["tick"] >= 2)  # the loop runs
         assert state["robot"] == "mini"
         process.send_signal(signal.SIGTERM)

@@ -116,7 +116,7 @@ def _secured_fleet(tmp: Path) -> Iterator[tuple[zenoh.Session, zenoh.Session]]:
             "hall", "--db", f"sqlite:///{tmp / 'dms.db'}", "--quiet",
         )  # fmt: skip
         stack.callback(daemon_proc.kill)
-        wait_token(admin, "robots/hall/alive/dms", present=True)
+        wait_token(admin, "robots/hall/alive/dms")
         app = _client(_json5(keys_dir / "app.json5"))
         stack.callback(app.close)
         yield admin, app

@@ -131,7 +131,7 @@ def test_the_simulated_mini_over_zenoh_turns_and_reports_its_joints(tmp_path: Pa
         states = Collector(session, "robots/mini/dms/state")
         try:
             thread.start()
-            wait_token(session, "robots/mini/alive/robot/joints", present=True, timeout=10.0)
+            wait_token(session, "robots/mini/alive/robot/joints", timeout=10.0)
             with Perception(session) as perception:
                 perception.face = {"x": X, "y": LEFT, "z": Z}
                 put(session, "request", {"action": "start", "activity": "quiz", "by": "test"})

@@ -77,7 +77,7 @@ class SecuredDaemon(DaemonProcess):
             env=env,
         )
         try:
-            wait_token(session, f"{ROBOT}/alive/dms", present=True)
+            wait_token(session, f"{ROBOT}/alive/dms")
         except AssertionError:
             self.proc.kill()
             raise AssertionError(f"daemon never became ready:\n{self.log.read_text()}") from None
@@ -96,7 +96,7 @@ class Deployment:
         if name not in self.sessions:
             session = zenoh.open(role_config(self.directory, role, rogue))
             self.sessions[name] = session
-            wait_token(session, f"{ROBOT}/alive/dms", present=True)
+            wait_token(session, f"{ROBOT}/alive/dms")
         return self.sessions[name]
 
 

@@ -64,7 +64,7 @@ def test_a_silent_robot_is_marked_offline_and_welcomed_back(tmp_path: Path) -> N
         node = RobotNode(robot_client, RealClock(), seed=2)
         thread = threading.Thread(target=node.run, daemon=True)
         thread.start()
-        wait_token(session, "robots/mini/alive/robot/feedback", present=True, timeout=20)
+        wait_token(session, "robots/mini/alive/robot/feedback", timeout=20)
         back = states.wait_for(lambda s: s["robot_link"] == "ok", start=states.mark() - 1)
         mark = decisions.mark()
         put(session, "request", {"action": "start", "activity": "jokes", "by": "app"})

@@ -41,7 +41,7 @@ def test_the_files_listen_endpoints_stand_when_no_listen_flag_is_given(tmp_path:
     )
     session = client_session(port)
     try:
-        wait_token(session, "robots/mini/alive/dms", present=True)
+        wait_token(session, "robots/mini/alive/dms")
         daemon.send_signal(signal.SIGTERM)
         assert daemon.wait(20) == 0
     finally:

@@ -40,7 +40,7 @@ def test_demo_visitor_makes_a_session_within_ten_seconds(tmp_path: Path) -> None
         )
         stop = start_visitor("demo", settings)
         try:
-            wait_token(session, "robots/mini/alive/perception/user", present=True, timeout=10.0)
+            wait_token(session, "robots/mini/alive/perception/user", timeout=10.0)
             first = decisions.wait_for(
                 lambda d: d["action"] == "start" and d["chosen_by"] in ("user", "robot"),
                 timeout=10.0,
@@ -92,9 +92,9 @@ def test_sim_robot_answers_commands_over_zenoh(tmp_path: Path) -> None:
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
         )
-        wait_token(session, "robots/mini/alive/dms", present=True)
+        wait_token(session, "robots/mini/alive/dms")
         thread.start()
-        wait_token(session, "robots/mini/alive/robot/feedback", present=True, timeout=10.0)
+        wait_token(session, "robots/mini/alive/robot/feedback", timeout=10.0)
         mark = commands.mark()  # a command sent before the robot listened gets no answer
         put(session, "perception/user", {"present": True, "user_id": "alice", "ready": True})
         put(session, "request", {"action": "start", "activity": "jokes", "by": "test"})
