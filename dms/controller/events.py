@@ -61,8 +61,9 @@ class Events:
         """Handle this tick's events in order, each under the fault barrier."""
         self.touches = []
         for event in snapshot.events:
-            with self.barrier.step(f"event/{event.key}", event.message):
-                self.handle_one(event.message, now)
+            self.barrier.run(
+                f"event/{event.key}", event.message, self.handle_one, event.message, now
+            )
 
     def handle_one(self, message: object, now: datetime) -> None:
         """One urgent input: a request, a touch, an utterance or a screen choice."""

@@ -6,6 +6,7 @@ The daemon publishes a record's ``decisions`` on ``dms/decision`` and its ``stat
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Literal
@@ -54,7 +55,7 @@ class UserFacts:
         )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class TickRecord:
     """What one tick decided and the state it left, taken at the end of the tick."""
 
@@ -69,7 +70,7 @@ class TickRecord:
     """The current activity (running or paused), if any."""
     suspended: ActivityFacts | None
     """The activity a reminder paused, if any."""
-    inputs: dict[str, Literal["ok", "stale", "missing"]]
+    inputs: Mapping[str, Literal["ok", "stale", "missing"]]
     robot_link: Literal["ok", "offline"]
     motivation_state: MotivationState | None
     """The motivation model's own state after the tick (None before the first step)."""

@@ -4,7 +4,7 @@
 :class:`~dms.controller.state.TickRecord`: the decisions taken, with their reasons, and
 the state they left. It never reads the clock, never blocks and never touches Zenoh:
 the daemon calls it at 2 Hz (and at once on urgent inputs) and publishes the record;
-simulations call it on a virtual clock. Each step runs under the fault barrier
+simulations call it on a virtual clock. Each step runs through the fault barrier
 (:mod:`dms.faults`): a step that raises is reported and the loop goes on.
 """
 
@@ -29,7 +29,7 @@ from dms.controller.sessions import Sessions
 from dms.controller.state import TickRecord, UserFacts
 from dms.dialog import Dialog
 from dms.faults import FaultBarrier
-from dms.inputs import InputBoard
+from dms.inputs import InputBoard, InputSnapshot
 from dms.kernel.activity_names import ManagerName
 from dms.kernel.messages import DmsState, Mode
 from managers import Manager
@@ -116,83 +116,78 @@ class Controller:
         # Urgent inputs first: answers to a dialog or to the running activity, the
         # shoulder's "continue or stop?", requests for an activity by name.
         self.events.handle(snapshot, now)
-        with barrier.step("motivation", sessions.user):
-            running = runner.current
-            active = running.name if running is not None and not running.paused else None
-            self.drives.step(snapshot, sessions.user, self.events.touches, active, now, monotonic)
-        with barrier.step("robot"):
-            steady = sessions.steady(now)  # what the robot and the frames measure with
-            if self.deps.scene is not None:
-                self.deps.scene.update(snapshot.values, snapshot.fresh, steady)
-            self.deps.expression.update(steady)
-            runner.check_robot_link(monotonic)
+        barrier.run("motivation", sessions.user, self._motivate, snapshot, now, monotonic)
+        barrier.run("robot", None, self._follow_robot, snapshot, now, monotonic)
         if self.deps.profiles is not None:
-            with barrier.step("memory"):
-                self.deps.profiles.retry(now)
+            barrier.run("memory", None, self.deps.profiles.retry, now)
         # 3, 5. Is a user ready? A session begins (the profile loaded or created) or ends.
-        with barrier.step("user", sessions.user):
-            choice.follow_user(now)
+        barrier.run("user", sessions.user, choice.follow_user, now)
         # 7. The answer to an open dialog (feedback, a question, "continue or stop?").
         dialog = dialogs.dialog
-        if dialog is not None:
-            with barrier.step("dialog", dialog.kind.value) as step:
-                dialogs.advance(now)
-            if step.failed:
-                self._drop_dialog(now)
+        if dialog is not None and not barrier.run(
+            "dialog", dialog.kind.value, dialogs.advance, now
+        ):
+            self._drop_dialog(now)
         if runner.cleaning:
-            with barrier.step("cleanup"):
-                runner.wind_down(now)
+            barrier.run("cleanup", None, runner.wind_down, now)
         if dialogs.dialog is None:
             # 2. An activity runs: what it did, then the four reasons to cancel it.
             running = runner.current
-            if running is not None:
-                with barrier.step("activity", running.name) as step:
-                    choice.follow_activity(now)
-                if step.failed:
-                    self._abandon_current(now, "activity")
+            if running is not None and not barrier.run(
+                "activity", running.name, choice.follow_activity, now
+            ):
+                self._abandon_current(now, "activity")
             running = runner.current
-            if running is not None:
-                with barrier.step("cancel", running.name) as step:
-                    choice.check_cancel_reasons(now)
-                if step.failed:
-                    self._abandon_current(now, "cancel")
+            if running is not None and not barrier.run(
+                "cancel", running.name, choice.check_cancel_reasons, now
+            ):
+                self._abandon_current(now, "cancel")
             # 4, 6, 8. Nothing runs: the motivation's behavior, or with a user an agenda
             # item, a general question, or an activity chosen by their proactivity.
             if runner.current is None and dialogs.dialog is None:
-                with barrier.step("choose", sessions.ready_user()):
-                    choice.choose(now)
+                barrier.run("choose", sessions.ready_user(), choice.choose, now)
         else:
             # (c) for a dialog: a due agenda item interrupts the question
-            with barrier.step("agenda", sessions.ready_user()):
-                choice.check_agenda_in_dialog(now)
+            barrier.run("agenda", sessions.ready_user(), choice.check_agenda_in_dialog, now)
         session = sessions.session
         if session is not None and session.account is not None:
-            with barrier.step(
-                "metrics"
-            ):  # after the sends of this tick: see SessionAccount.on_tick
-                session.account.on_tick(now, self.deps.expression.pending)
+            # after the sends of this tick: see SessionAccount.on_tick
+            barrier.run("metrics", None, session.account.on_tick, now, self.deps.expression.pending)
         # 9. The record of this pass; the daemon publishes it and ticks again.
         return self._record(now, urgent)
+
+    def _motivate(self, snapshot: InputSnapshot, now: datetime, monotonic: float) -> None:
+        """Step the motivation model with what the robot perceives and does."""
+        running = self.runner.current
+        active = running.name if running is not None and not running.paused else None
+        self.drives.step(snapshot, self.sessions.user, self.events.touches, active, now, monotonic)
+
+    def _follow_robot(self, snapshot: InputSnapshot, now: datetime, monotonic: float) -> None:
+        """Update what the robot's feedback, the frames and the robot link say."""
+        steady = self.sessions.steady(now)  # what the robot and the frames measure with
+        if self.deps.scene is not None:
+            self.deps.scene.update(snapshot.values, snapshot.fresh, steady)
+        self.deps.expression.update(steady)
+        self.runner.check_robot_link(monotonic)
 
     def shutdown(self, now: datetime) -> TickRecord:
         """Stop what runs (SIGINT/SIGTERM): cancel the activity and any suspended one."""
         self._now = now
         self.log.begin(self._tick)
-        runner = self.runner
+        runner, barrier = self.runner, self._barrier
         if self.dialogs.dialog is not None:
             self.dialogs.end(now)
         for running in (runner.current, runner.suspended):
             if running is not None:
-                with self._barrier.step("shutdown", running.name):
-                    runner.cancel(running, "shutdown", now, cleanup=False)
+                barrier.run(
+                    "shutdown", running.name, runner.cancel, running, "shutdown", now, cleanup=False
+                )
         runner.current = runner.suspended = None
         for manager in runner.managers.values():
-            with self._barrier.step("shutdown", manager.name):
-                manager.stop_winding_down(now)
+            barrier.run("shutdown", manager.name, manager.stop_winding_down, now)
         session = self.sessions.session
         if session is not None:
-            with self._barrier.step("shutdown", session.user_id):
-                self.sessions.end(now)
+            barrier.run("shutdown", session.user_id, self.sessions.end, now)
         return self._record(now, urgent=False)
 
     # ------------------------------------------------------------------ after a fault
@@ -200,36 +195,54 @@ class Controller:
     def _drop_dialog(self, now: datetime) -> None:
         """After a fault in the dialog step: close the dialog, silence it, go on."""
         self.dialogs.dialog = None
-        with self._barrier.step("dialog/close"):
-            self.dialogs.end(now)
+        self._barrier.run("dialog/close", None, self.dialogs.end, now)
         running = self.runner.current
         if running is not None and running.paused and self.runner.suspended is not running:
-            with self._barrier.step("dialog/resume", running.name):
-                self.runner.resume(running, "confirm_cancel", now, "the dialog failed")
+            self._barrier.run(
+                "dialog/resume",
+                running.name,
+                self.runner.resume,
+                running,
+                "confirm_cancel",
+                now,
+                "the dialog failed",
+            )
 
     def _abandon_current(self, now: datetime, step: str) -> None:
         """After a fault while running or checking the activity: stop it as failed, so
         that what the state says and what the robot does agree again."""
-        runner = self.runner
+        runner, barrier = self.runner, self._barrier
         running = runner.current
         if running is None:
             return
         runner.current = None
-        with self._barrier.step(f"{step}/stop", running.name):
-            runner.managers[running.manager].cancel(now)
-        with self._barrier.step(f"{step}/stop", running.name):
-            self.deps.expression.interrupt_source(f"activity:{running.name}", now)
+        barrier.run(f"{step}/stop", running.name, runner.managers[running.manager].cancel, now)
+        barrier.run(
+            f"{step}/stop",
+            running.name,
+            self.deps.expression.interrupt_source,
+            f"activity:{running.name}",
+            now,
+        )
         self.counters.activity_failures += 1
         self.log.decide(
             "fail", running.name, "activity_error", running.chosen_by, f"{step} step failed", now
         )
-        with self._barrier.step(f"{step}/record", running.name):
-            self.sessions.record_activity(running, "failed", now)
+        barrier.run(
+            f"{step}/record", running.name, self.sessions.record_activity, running, "failed", now
+        )
         if runner.suspended is not None and self.dialogs.dialog is None:
             suspended, runner.suspended = runner.suspended, None
             runner.current = suspended
-            with self._barrier.step(f"{step}/resume", suspended.name):
-                runner.resume(suspended, "activity_error", now, f"after the {running.name}")
+            barrier.run(
+                f"{step}/resume",
+                suspended.name,
+                runner.resume,
+                suspended,
+                "activity_error",
+                now,
+                f"after the {running.name}",
+            )
 
     # ------------------------------------------------------------------ what activities see
 
@@ -316,7 +329,7 @@ class Controller:
             user=user,
             current=runner.published(runner.current),
             suspended=runner.published(runner.suspended),
-            inputs=dict(snapshot.status) if snapshot is not None else {},
+            inputs=snapshot.status if snapshot is not None else {},
             robot_link="offline" if self.deps.expression.robot_offline else "ok",
             motivation_state=self.drives.state,
             model=self.drives.model,
