@@ -49,6 +49,8 @@ class Seat:
         self._rng = random.Random(seed)
         self._from: Position = home
         self._to: Position = home
+        self._rest = _rounded(home)
+        """Where the face rests after the move under way, rounded as ``face`` reports it."""
         self.sit(now)
 
     def sit(self, now: datetime) -> None:
@@ -63,7 +65,7 @@ class Seat:
         while now >= self._next:
             self._move(self._next)
         if now >= self._end:
-            return _rounded(self._to)
+            return self._rest
         span = (self._end - self._start).total_seconds()
         done = (now - self._start).total_seconds() / span if span > 0 else 1.0
         (x0, y0, z0), (x1, y1, z1) = self._from, self._to
@@ -73,6 +75,7 @@ class Seat:
         """Move the face to ``where`` over ``seconds`` from ``now`` (a scripted move)."""
         self._from = self.face(now)
         self._to = where
+        self._rest = _rounded(where)
         self._start = now
         self._end = now + timedelta(seconds=seconds)
 
@@ -80,6 +83,7 @@ class Seat:
         s = self.settings
         self._from = self._to
         self._to = (self._rng.uniform(*s.x), self._rng.uniform(*s.y), self._rng.uniform(*s.z))
+        self._rest = _rounded(self._to)
         self._start = when
         self._end = when + timedelta(seconds=self._rng.uniform(*s.move_s))
         self._next = self._end + timedelta(seconds=self._rng.uniform(*s.still_s))
