@@ -18,6 +18,7 @@ import pytest
 
 from dms.config import Settings
 from dms.controller import TickRecord
+from dms.faults import FaultBarrier
 from dms.kernel import keys
 from dms.kernel.messages import Request, Touch, UserPerception
 from sim.harness import Simulation
@@ -199,3 +200,26 @@ def test_a_fault_that_keeps_coming_back_is_reported_again_after_a_minute() -> No
         reports = [e for e in sim.errors if e[1] == "tick/motivation"]
         assert 2 <= len(reports) <= 4, reports
         assert "again" in reports[1][2]
+
+
+def test_the_barrier_returns_whether_a_step_ran_and_lets_an_interrupt_through() -> None:
+    reports: list[tuple[str, str]] = []
+    barrier = FaultBarrier(lambda key, line: reports.append((key, line)))
+    done: list[int] = []
+
+    assert barrier.run("ok", None, done.append, 1) is True
+    assert done == [1] and reports == []
+
+    def broken(x: int, *, by: str) -> None:
+        raise Boom(f"{x} by {by}")
+
+    assert barrier.run("broken", "ann", broken, 2, by="test") is False
+    assert reports == [("tick/broken", "Boom: 2 by test on 'ann'; the loop goes on")]
+    assert [(f.step, f.subject) for f in barrier.faults] == [("broken", "'ann'")]
+
+    def interrupted() -> None:
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        barrier.run("interrupted", None, interrupted)
+    assert len(reports) == 1
