@@ -41,6 +41,19 @@ def _no_process_left() -> Iterator[None]:
             proc.wait(10)
 
 
+@pytest.fixture(autouse=True)
+def _sigint_as_a_terminal_sends_it() -> Iterator[None]:
+    """The daemons these cases spawn do not ignore SIGINT, even when the tests run
+    where it is ignored (a job started in the background): a child inherits an ignored
+    SIGINT, and Python keeps ignoring it until ``dms.cli.main`` takes it over, so a
+    Ctrl-C in its first moment would be lost. Ctrl-C from a terminal finds it handled."""
+    previous = signal.getsignal(signal.SIGINT)
+    if previous == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
+
+
 def spawn(tmp: Path, *python_flags: str) -> subprocess.Popen[str]:
     """``dms run`` on a fresh SQLite file in ``tmp`` and a free loopback port."""
     command = [sys.executable, *python_flags, "-m", "dms.cli", "run", "--quiet"]
