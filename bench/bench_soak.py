@@ -24,8 +24,8 @@ Reported: profile writes acknowledged (queued with an id) and stored (their ids 
 ``applied_writes`` once every fault is over), the agenda's records the same way, resident
 memory by day, the longest gap between two ``dms/state`` messages (virtual seconds) and
 when it was, the faults applied, and for the clock steps the ticks run while the clock
-stood stepped. Not a timed test: a simulated day takes about 85 s on two cores, a month
-about 42 minutes (``--days`` runs fewer).
+stood stepped. Not a timed test: a simulated day takes 45-85 s on two cores, a month
+about 23 minutes (``--days`` runs fewer).
 
 Usage: ``.venv/bin/python bench/bench_soak.py [--days 30] [--quick]``
 (``--quick``: four simulated hours, a visit every 25 minutes, every fault once).
