@@ -48,9 +48,7 @@ class Seat:
         self.settings = settings or SeatSettings()
         self._rng = random.Random(seed)
         self._from: Position = home
-        self._to: Position = home
-        self._rest = _rounded(home)
-        """Where the face rests after the move under way, rounded as ``face`` reports it."""
+        self._head_for(home)
         self.sit(now)
 
     def sit(self, now: datetime) -> None:
@@ -74,16 +72,20 @@ class Seat:
     def move_to(self, where: Position, now: datetime, seconds: float = 0.0) -> None:
         """Move the face to ``where`` over ``seconds`` from ``now`` (a scripted move)."""
         self._from = self.face(now)
-        self._to = where
-        self._rest = _rounded(where)
+        self._head_for(where)
         self._start = now
         self._end = now + timedelta(seconds=seconds)
+
+    def _head_for(self, where: Position) -> None:
+        """Aim the move under way at ``where``; the face rests there, rounded as ``face``
+        reports it."""
+        self._to = where
+        self._rest = _rounded(where)
 
     def _move(self, when: datetime) -> None:
         s = self.settings
         self._from = self._to
-        self._to = (self._rng.uniform(*s.x), self._rng.uniform(*s.y), self._rng.uniform(*s.z))
-        self._rest = _rounded(self._to)
+        self._head_for((self._rng.uniform(*s.x), self._rng.uniform(*s.y), self._rng.uniform(*s.z)))
         self._start = when
         self._end = when + timedelta(seconds=self._rng.uniform(*s.move_s))
         self._next = self._end + timedelta(seconds=self._rng.uniform(*s.still_s))
