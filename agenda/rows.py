@@ -10,13 +10,13 @@ from __future__ import annotations
 from collections.abc import Callable
 from datetime import UTC, datetime, timedelta
 
-from sqlalchemy import Engine, inspect
+from sqlalchemy import Engine
 from sqlalchemy.exc import SQLAlchemyError
 
 from agenda import migrations
 from agenda.errors import AgendaError
 from agenda.items import AgendaItem, ItemKind, ItemSpec, Occurrence, Outcome, Priority
-from agenda.models import ClaimRow, ItemRow, OccurrenceRow
+from agenda.models import ItemRow, OccurrenceRow
 from agenda.schedule import MAX_EVERY_S, Schedule, ScheduleKind, build, localize, zone
 from dms.kernel.activity_names import ACTIVITIES
 from dms.kernel.ids import InvalidIdentifier, check_identifier
@@ -35,36 +35,16 @@ def one_line(error: BaseException) -> str:
 def prepare_schema(engine: Engine) -> None:
     """At open: create the agenda's tables in a new database, or check that they are
     at the revision this code needs and all there (AgendaError otherwise)."""
-    head = migrations.head()
     with engine.connect() as connection:
-        revision = migrations.current(connection)
-        installed = migrations.installed(connection)
-        tables = set(inspect(connection).get_table_names())
-    if revision == head:
-        needed = (ItemRow.__tablename__, OccurrenceRow.__tablename__, ClaimRow.__tablename__)
-        missing = [name for name in needed if name not in tables]
-        if missing:
-            raise AgendaError(
-                f"the database is damaged: the agenda's table {', '.join(missing)} is "
-                "missing; restore a backup, or run `dms db upgrade` to recreate it empty"
-            )
-        return
-    if revision is None and not installed:
+        new = migrations.needs_tables(connection)
+    if new:
         try:
             migrations.upgrade_engine(engine)
         except SQLAlchemyError:
             # Another process may have created it at the same time.
             with engine.connect() as connection:
-                if migrations.current(connection) != head:
+                if migrations.current(connection) != migrations.head():
                     raise
-        return
-    if migrations.HISTORY.newer(revision):
-        assert revision is not None
-        raise AgendaError(f"the database {migrations.HISTORY.newer_message('agenda', revision)}")
-    raise AgendaError(
-        f"the agenda's tables are at revision {revision or 'none'}, this dms needs "
-        f"{head}: run `dms db upgrade`"
-    )
 
 
 def validate(

@@ -37,6 +37,11 @@ def as_url(value: str) -> str:
     return f"sqlite:///{Path(value).expanduser().absolute()}"
 
 
+def shown_url(url: str) -> str:
+    """``url`` as messages show it: without its password (ArgumentError if it is no URL)."""
+    return make_url(url).render_as_string(hide_password=True)
+
+
 def side_file(url: str, suffix: str, owner: str | None = None) -> Path:
     """A local file that belongs to the database at ``url`` (the write spool, quarantine).
 

@@ -45,3 +45,9 @@ class StoreRefused(ProfileError):
 class StoreDamaged(ProfileError):
     """The database is at the right revision but tables are missing (dropped by hand, a
     partial restore); ``dms db upgrade`` recreates them empty, or restore a backup."""
+
+
+def one_line(error: BaseException) -> str:
+    """A database error's first line, for a one-line message."""
+    text = str(getattr(error, "orig", None) or error).strip().splitlines()
+    return text[0] if text else type(error).__name__

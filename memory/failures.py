@@ -24,14 +24,7 @@ from sqlalchemy.exc import (
 from sqlalchemy.exc import TimeoutError as PoolTimeout
 from sqlalchemy.orm.exc import StaleDataError
 
-from memory.errors import ProfileError, StoreRefused, StoreUnavailable
-
-
-def one_line(error: BaseException) -> str:
-    """A database error's first line, for a one-line message."""
-    text = str(getattr(error, "orig", None) or error).strip().splitlines()
-    return text[0] if text else type(error).__name__
-
+from memory.errors import ProfileError, StoreRefused, StoreUnavailable, one_line
 
 _TRANSIENT_SQLSTATE_CLASSES = ("08", "40", "53", "57", "58", "HY", "XX")
 """PostgreSQL error classes that pass: connection, rollback (serialization, deadlock),

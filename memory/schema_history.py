@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import ast
 import logging
+from collections.abc import Callable
 from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -66,10 +67,11 @@ class SchemaHistory:
         folder: Path,
         version_table: str,
         tables: tuple[str, ...],
-        models: MetaData | None = None,
+        models: Callable[[], MetaData] | None = None,
     ) -> None:
-        """``models``: the package's tables at head (its ORM metadata), from which a new
-        database is created; None: always through the migrations."""
+        """``models``: gives the package's tables at head (its ORM metadata), from which a
+        new database is created; None: always through the migrations. A function, so that
+        checking a database (:meth:`current`, :meth:`newer`) does not load the ORM."""
         self.folder = folder
         self.version_table = version_table
         self.tables = tables
@@ -185,7 +187,7 @@ class SchemaHistory:
                     # could not become a write without SQLITE_BUSY.
                     connection.exec_driver_sql("BEGIN IMMEDIATE")
                 if not self.installed(connection):
-                    self._create_at_head(connection, self.models)
+                    self._create_at_head(connection, self.models())
                     return
         from alembic import command
 

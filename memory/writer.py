@@ -50,8 +50,8 @@ from sqlalchemy.exc import IntegrityError, SQLAlchemyError
 from sqlalchemy.orm.exc import StaleDataError
 
 from memory.backlog import MEMORY_BOUND, Backlog
-from memory.errors import ProfileError, StoreUnavailable
-from memory.failures import classify, one_line
+from memory.errors import ProfileError, StoreUnavailable, one_line
+from memory.failures import classify
 from memory.spool import Quarantine
 from memory.watch import FileWatch
 

@@ -22,21 +22,14 @@ from contextlib import contextmanager, suppress
 from datetime import UTC, datetime, timedelta
 from typing import Any, TypeVar
 
-from sqlalchemy import Connection, delete, insert, inspect, update
-from sqlalchemy.engine import make_url
-from sqlalchemy.exc import ArgumentError, SQLAlchemyError
+from sqlalchemy import Connection, delete, insert, update
+from sqlalchemy.exc import SQLAlchemyError
 from sqlalchemy.orm import Session, sessionmaker
 
 from memory import migrations
-from memory.db import as_url, default_url, make_engine
-from memory.errors import (
-    ProfileError,
-    ProfileNotFound,
-    SchemaOutOfDate,
-    StoreDamaged,
-    StoreUnavailable,
-)
-from memory.failures import Conflict, Stale, classified, one_line
+from memory.db import as_url, default_url, shown_url
+from memory.errors import ProfileError, ProfileNotFound, StoreUnavailable, one_line
+from memory.failures import Conflict, Stale, classified
 from memory.models import AppliedWriteRow, UserRow
 from memory.profile import Profile
 from memory.rows import (
@@ -77,46 +70,16 @@ class StoreDatabase:
 
     def __init__(self, url: str | None = None, busy_timeout_s: float | None = None) -> None:
         self.url = as_url(url) if url else default_url()
-        try:
-            shown = make_url(self.url).render_as_string(hide_password=True)
-        except ArgumentError as error:
-            raise ProfileError(f"cannot open database {self.url!r}: {error}") from None
-        try:
-            self.engine = make_engine(self.url, busy_timeout_s)
-            with self.engine.connect() as connection:
-                installed = migrations.installed(connection)
-                current = migrations.current(connection) if installed else None
-                tables = set(inspect(connection).get_table_names())
-        except (SQLAlchemyError, OSError, ImportError) as error:
-            raise ProfileError(f"cannot open database {shown}: {one_line(error)}") from None
-        head = migrations.head()
-        if not installed:
+        self.engine, new = migrations.open_checked(self.url, busy_timeout_s)
+        if new:
             try:
                 migrations.upgrade_engine(self.engine)
             except SQLAlchemyError as error:
                 self.engine.dispose()
+                shown = shown_url(self.url)
                 raise ProfileError(
                     f"cannot create the profile tables in {shown}: {one_line(error)}"
                 ) from None
-        elif migrations.HISTORY.newer(current):
-            self.engine.dispose()
-            assert current is not None
-            raise ProfileError(
-                f"database {shown} {migrations.HISTORY.newer_message('profile', current)}"
-            )
-        elif current != head:
-            self.engine.dispose()
-            raise SchemaOutOfDate(
-                f"database {shown} has profile schema {current or 'unversioned'}, "
-                f"this dms needs {head}: run `dms db upgrade --db {shown}`"
-            )
-        elif missing := [name for name in migrations.TABLES if name not in tables]:
-            self.engine.dispose()
-            raise StoreDamaged(
-                f"database {shown} is damaged: table {', '.join(missing)} missing at schema "
-                f"{head}; restore a backup, or run `dms db upgrade --db {shown}` to recreate "
-                "it empty"
-            )
         self._sessions = sessionmaker(self.engine, expire_on_commit=False)
         self._dialect = self.engine.dialect.name
         self._upserts = upserts(self._dialect)

@@ -10,16 +10,26 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from agenda.models import Base
+from sqlalchemy import Connection, MetaData, inspect
+
+from agenda.errors import AgendaError
 from memory.db import make_engine
 from memory.schema_history import SchemaHistory
 
 VERSION_TABLE = "alembic_version_agenda"
 HERE = Path(__file__).resolve().parent
 
-HISTORY = SchemaHistory(
-    HERE, VERSION_TABLE, ("agenda_items", "agenda_occurrences", "agenda_claims"), Base.metadata
-)
+TABLES = ("agenda_items", "agenda_occurrences", "agenda_claims")
+
+
+def models() -> MetaData:
+    """The agenda's tables at head (its ORM models)."""
+    from agenda.models import Base
+
+    return Base.metadata
+
+
+HISTORY = SchemaHistory(HERE, VERSION_TABLE, TABLES, models)
 head = HISTORY.head
 current = HISTORY.current
 installed = HISTORY.installed
@@ -31,7 +41,7 @@ def upgrade(url: str) -> None:
     engine = make_engine(url)
     try:
         upgrade_engine(engine)
-        HISTORY.recreate_missing(engine, Base.metadata)
+        HISTORY.recreate_missing(engine, models())
     finally:
         engine.dispose()
 
@@ -44,3 +54,26 @@ def is_current(url: str) -> bool:
             return current(connection) == head()
     finally:
         engine.dispose()
+
+
+def needs_tables(connection: Connection) -> bool:
+    """True when the agenda's tables are not there yet (a new database); AgendaError when
+    they are there and this dms cannot use them (newer, older, one missing)."""
+    revision = current(connection)
+    if revision == head():
+        names = set(inspect(connection).get_table_names())
+        if missing := [name for name in TABLES if name not in names]:
+            raise AgendaError(
+                f"the database is damaged: the agenda's table {', '.join(missing)} is "
+                "missing; restore a backup, or run `dms db upgrade` to recreate it empty"
+            )
+        return False
+    if revision is None and not installed(connection):
+        return True
+    if HISTORY.newer(revision):
+        assert revision is not None
+        raise AgendaError(f"the database {HISTORY.newer_message('agenda', revision)}")
+    raise AgendaError(
+        f"the agenda's tables are at revision {revision or 'none'}, this dms needs "
+        f"{head()}: run `dms db upgrade`"
+    )
