@@ -8,6 +8,11 @@ on every tick and reports :meth:`Agenda.delivered`; what its user could not rece
 within the grace time is logged as missed, never dropped and never run twice.
 """
 
+from __future__ import annotations
+
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
+
 from agenda.errors import AgendaError, AgendaNotFound
 from agenda.items import (
     AgendaItem,
@@ -19,7 +24,21 @@ from agenda.items import (
     Priority,
     UpcomingItem,
 )
-from agenda.service import Agenda
+
+if TYPE_CHECKING:
+    from agenda.service import Agenda
+
+
+def __getattr__(name: str) -> Any:
+    """:class:`Agenda` is imported on first use: its database layer (SQLAlchemy's ORM)
+    is the largest part of the daemon's imports, and the daemon opens the agenda only
+    once it is ready (its items and the controller's view of them load without it)."""
+    if name != "Agenda":
+        raise AttributeError(f"module 'agenda' has no attribute {name!r}")
+    value = import_module("agenda.service").Agenda
+    globals()[name] = value
+    return value
+
 
 __all__ = [
     "Agenda",

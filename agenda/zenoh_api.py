@@ -22,8 +22,8 @@ from typing import Any
 from agenda.errors import AgendaError
 from agenda.items import ItemSpec
 from agenda.service import Agenda
+from dms.kernel.keys import ALL_USERS
 
-ALL_USERS = ("*", "**", "")
 DEFAULT_LIMIT = 20
 MAX_LIMIT = 1000
 

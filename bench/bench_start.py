@@ -10,8 +10,11 @@
   (``ready_vs_bare``, ``restart_vs_bare``; target <= 2): the machine's speed and load
   cancel out; ``*_paired``: the median of each start over its own bare run, which also
   cancels a load that drifts during the benchmark;
-- the daemon's resident memory (RSS, from ``/proc``) at ready, and after ``--idle-s``
-  seconds idle (default 600: ten minutes) in one more start.
+- the time from exec to the answer of a ``users/*`` query asked as soon as the token is
+  seen (``store_s_median``): the daemon opens its profile store and its agenda right
+  after ready, and such a query waits for them;
+- the daemon's resident memory (RSS, from ``/proc``) once it answered that query, and
+  after ``--idle-s`` seconds idle (default 600: ten minutes) in one more start.
 
 Before timing, the project's modules are compiled to bytecode (``compileall``), as pip
 does when it installs a package: the site-packages of the bare import are compiled too,
@@ -46,6 +49,7 @@ import zenoh  # noqa: E402
 from tests.integration.harness import free_port  # noqa: E402
 
 TOKEN = "robots/mini/alive/dms"
+USERS = "robots/mini/users/*"
 BARE = "import numpy, sqlalchemy, zenoh, pydantic"
 """What any process of the daemon's stack imports: the floor of its start time."""
 PACKAGES = ("dms", "activities", "agenda", "managers", "memory", "motivation", "sim")
@@ -93,9 +97,12 @@ def start_daemon(tmp: Path, port: int) -> subprocess.Popen[bytes]:
     db = f"sqlite:///{tmp / 'dms.db'}"
     command = [sys.executable, "-m", "dms.cli", "run", "--quiet", "--db", db]
     command += ["--listen", f"tcp/127.0.0.1:{port}", "--seed", "1"]
+    # the users/ query of the store's figure is answered only with profiles served
+    env = {**os.environ, "DMS_PRIVACY__SERVE_PROFILES": "true"}
     return subprocess.Popen(
         command,
         cwd=ROOT,
+        env=env,
         stdout=subprocess.DEVNULL,
         stderr=(tmp / "daemon.log").open("wb"),
     )
@@ -103,10 +110,11 @@ def start_daemon(tmp: Path, port: int) -> subprocess.Popen[bytes]:
 
 def one_start(
     timeout: float, folder: Any = None
-) -> tuple[float, subprocess.Popen[bytes], Any, Any]:
-    """Seconds from exec to the token, in ``folder`` (a TemporaryDirectory; a new one by
-    default); the process, its session and the folder are returned still open (the
-    caller measures memory, then stops them)."""
+) -> tuple[float, float, subprocess.Popen[bytes], Any, Any]:
+    """Seconds from exec to the token and to the answer of a ``users/*`` query asked
+    then, in ``folder`` (a TemporaryDirectory; a new one by default); the process, its
+    session and the folder are returned still open (the caller measures memory, then
+    stops them)."""
     folder = folder or tempfile.TemporaryDirectory()
     tmp = Path(folder.name)
     port = free_port()
@@ -125,7 +133,12 @@ def one_start(
         raise RuntimeError(f"no {TOKEN} within {timeout}s:\n{(tmp / 'daemon.log').read_text()}")
     elapsed = time.perf_counter() - t0
     subscriber.undeclare()
-    return elapsed, proc, session, folder
+    answers = [reply.ok for reply in session.get(USERS, timeout=timeout) if reply.ok]
+    if not answers:
+        proc.kill()
+        raise RuntimeError(f"no answer to {USERS}:\n{(tmp / 'daemon.log').read_text()}")
+    store = time.perf_counter() - t0
+    return elapsed, store, proc, session, folder
 
 
 def stop(proc: subprocess.Popen[bytes], session: Any, folder: Any, keep: bool = False) -> None:
@@ -164,26 +177,28 @@ def main() -> None:
         compile_project()
 
     times: list[float] = []
+    stores: list[float] = []
     ready_rss: list[float] = []
     bare: list[float] = []
     for _ in range(args.starts):
         bare.append(bare_import_s())
-        elapsed, proc, session, folder = one_start(args.timeout)
+        elapsed, store, proc, session, folder = one_start(args.timeout)
         times.append(elapsed)
+        stores.append(store)
         ready_rss.append(rss_mb(proc.pid))
         stop(proc, session, folder)
 
     restarts: list[float] = []
-    _, proc, session, kept = one_start(args.timeout)  # creates the database, not timed
+    _, _, proc, session, kept = one_start(args.timeout)  # creates the database, not timed
     stop(proc, session, kept, keep=True)
     for _ in range(args.starts):
         bare.append(bare_import_s())
-        elapsed, proc, session, kept = one_start(args.timeout, kept)
+        elapsed, _, proc, session, kept = one_start(args.timeout, kept)
         restarts.append(elapsed)
         stop(proc, session, kept, keep=True)
     kept.cleanup()
 
-    elapsed, proc, session, folder = one_start(args.timeout)
+    elapsed, _, proc, session, folder = one_start(args.timeout)
     at_ready = rss_mb(proc.pid)
     samples: list[tuple[float, float]] = []
     t0 = time.monotonic()
@@ -202,6 +217,7 @@ def main() -> None:
         "ready_s_median": round(statistics.median(times), 3),
         "ready_s_max": round(max(times), 3),
         "ready_s_all": [round(t, 3) for t in times],
+        "store_s_median": round(statistics.median(stores), 3),
         "restart_s_median": round(statistics.median(restarts), 3),
         "restart_s_max": round(max(restarts), 3),
         "bare_import_s_median": round(statistics.median(bare), 3),

@@ -13,15 +13,12 @@ import math
 import random
 import zoneinfo
 from collections.abc import Callable
+from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import TYPE_CHECKING, Any
 
-from sqlalchemy.engine import make_url
-
 from activities import BehaviorError, BehaviorLibrary, decision_warnings
-from agenda import Agenda, AgendaError
-from agenda.service import POLL_S
 from dms.config import Settings
 from dms.controller import Controller, ControllerDeps
 from dms.inputs import InputBoard
@@ -29,23 +26,34 @@ from dms.kernel.errors import ConfigError
 from dms.kernel.expression import ExpressionArbiter
 from dms.kernel.messages import RobotCommand
 from dms.kernel.ports import JointReporter, RobotPort
-from dms.profiles import ProfileService
 from dms.scene import Scene
-from memory import ActivityChooser, PreferenceModel, ProfileError, ProfileStore, QuestionBank
-from memory.db import as_url, default_url
 from motivation import MotivationConfigError, MotivationModel, load_config
 
 if TYPE_CHECKING:
+    from agenda import Agenda
+    from dms.profiles import ProfileService
     from dms.rules import LiveRules
+    from memory import ActivityChooser, ProfileStore, QuestionBank
 
 log = logging.getLogger(__name__)
 
-AGENDA_POLL_S = POLL_S
+AGENDA_POLL_S = 10.0
 """How often a robot's agenda looks for items added elsewhere (another robot, the CLI)."""
 WRITER_BUSY_TIMEOUT_S = 1.0
 """SQLite lock wait of the daemon's store writer: past it the writes are spooled."""
 TRAINING_STOP_WAIT_S = 10.0
 """How long closing waits for a retraining under way (it reads the store being closed)."""
+
+
+@dataclass
+class Memory:
+    """The store, the agenda and what the controller reads from them."""
+
+    store: ProfileStore
+    profiles: ProfileService
+    chooser: ActivityChooser
+    questions: QuestionBank
+    agenda: Agenda
 
 
 @dataclass
@@ -64,15 +72,35 @@ class Stack:
     chooser: ActivityChooser | None = None
     train_when_ready: bool = False
     """The chooser has an untrained model until :meth:`when_ready` trains it from the store."""
+    open_when_ready: Callable[[], Memory] | None = None
+    """Opens the store and the agenda in :meth:`when_ready` (the daemon: after ready)."""
 
-    def when_ready(self) -> None:
-        """Once the daemon is ready (``alive/dms`` declared): train the preference model
-        from the seed personas and the store in a background thread; the chooser swaps it
-        in when done (tens of milliseconds later).
+    def attach(self, memory: Memory) -> None:
+        """Give the controller its store, agenda, chooser and questions."""
+        self.store, self.agenda, self.chooser = memory.store, memory.agenda, memory.chooser
+        deps = self.controller.deps
+        deps.profiles, deps.agenda = memory.profiles, memory.agenda
+        deps.chooser, deps.questions = memory.chooser, memory.questions
 
-        Training is work that can wait: until then the chooser's beliefs start flat, as
-        for a user of unknown features, so a restarted daemon is back at once.
+    def when_ready(self, lock: AbstractContextManager[Any] | None = None) -> None:
+        """Once the daemon is ready (``alive/dms`` declared), the work that can wait.
+
+        First the store and the agenda, when :func:`build_stack` left them for now: their
+        database layer is a third of what ``dms run`` imports. They are attached under
+        ``lock`` (the daemon's, which its queries take). Until then the controller runs as
+        without a memory; the daemon's ready tick comes before any input is heard, and its
+        next tick after this. Raises ConfigError (one line) when either cannot be opened.
+
+        Then the preference model is trained from the seed personas and the store in a
+        background thread; the chooser swaps it in when done (tens of milliseconds
+        later). Until then the chooser's beliefs start flat, as for a user of unknown
+        features, so a restarted daemon is back at once.
         """
+        if self.open_when_ready is not None:
+            memory = self.open_when_ready()
+            self.open_when_ready = None
+            with lock or nullcontext():
+                self.attach(memory)
         if self.train_when_ready and self.chooser is not None:
             self.train_when_ready = False
             self.chooser.retrain()
@@ -122,6 +150,7 @@ def build_stack(
     retrain: bool = True,
     background_io: bool = True,
     agenda_poll_s: float | None = AGENDA_POLL_S,
+    memory_when_ready: bool = False,
 ) -> Stack:
     """Open everything ``settings`` names; raise DmsError with one line if anything is wrong.
 
@@ -133,6 +162,9 @@ def build_stack(
     for a database nobody else writes, such as a simulation's own).
     ``background_io=False`` runs the store's and the agenda's database work inline, not on
     their threads (the simulator, for the same reason).
+    ``memory_when_ready=True`` checks the database now (:func:`check_database`) and leaves
+    opening the store and the agenda to :meth:`Stack.when_ready` (the daemon: their ORM
+    is not imported before it is ready).
     """
     rng = rng or random.Random(settings.seed)
     try:
@@ -154,66 +186,6 @@ def build_stack(
         except RulesError as error:
             raise ConfigError(f"rules: {error}") from None
     warnings = [("behaviors", line) for line in decision_warnings(library, rules)]
-    store: ProfileStore | None = None
-    agenda: Agenda | None = None
-    profiles: ProfileService | None = None
-    chooser: ActivityChooser | None = None
-    questions: QuestionBank | None = None
-    if with_memory:
-        url = settings.db or default_url()
-        try:
-            store = ProfileStore(url, WRITER_BUSY_TIMEOUT_S if background_io else None)
-        except ProfileError as error:
-            raise ConfigError(f"database {url}: {error}") from None
-        profiles = ProfileService(
-            store,
-            report_error,
-            threaded=background_io,
-            owner=settings.robot_id,
-            spool_dir=settings.storage.spool_dir,
-            memory_bound=settings.storage.memory_bound,
-        )
-        log.debug(
-            "storage: profiles and agenda in %s; writes go through a background writer"
-            " (spare spool folder %s, %d writes kept in memory at most)",
-            make_url(as_url(url)).render_as_string(hide_password=True),
-            settings.storage.spool_dir or "none",
-            settings.storage.memory_bound,
-        )
-        if retrain:
-            # Trained after ready (Stack.when_ready): even the seed personas' fit cost
-            # the start 20-40 ms.
-            model = PreferenceModel.untrained()
-        else:  # the simulator: trained here, so that a seeded run never depends on threads
-            try:
-                model = PreferenceModel.train(store)
-            except (ProfileError, ValueError):
-                model = PreferenceModel.from_seed()
-        chooser = (
-            ActivityChooser(model, store)
-            if retrain
-            else ActivityChooser(model, store, retrain_every_s=math.inf)
-        )
-        questions = QuestionBank.default()
-
-        def user_exists(user_id: str) -> bool:
-            assert store is not None and profiles is not None
-            return profiles.met(user_id) or user_id in store.list_ids()
-
-        try:
-            agenda = Agenda(
-                url,
-                user_exists=user_exists,
-                background=background_io,
-                claimer=settings.robot_id,
-                poll_s=agenda_poll_s,
-                report=report_error,
-                spool_dir=settings.storage.spool_dir,
-            )
-        except AgendaError as error:
-            profiles.close()
-            store.close()
-            raise ConfigError(f"agenda {url}: {error}") from None
     expression = ExpressionArbiter(
         robot,
         on_command,
@@ -226,11 +198,7 @@ def build_stack(
         library=library,
         expression=expression,
         motivation=motivation,
-        profiles=profiles,
-        agenda=agenda,
         rules=rules,
-        chooser=chooser,
-        questions=questions,
         report_error=report_error,
         robot_state=robot_state,
         scene=Scene(
@@ -242,15 +210,117 @@ def build_stack(
     controller = Controller(
         deps, inputs, settings.controller, settings.robot_id, rng, timezone_hour=hour
     )
-    return Stack(
-        controller,
-        inputs,
-        expression,
+    stack = Stack(controller, inputs, expression, None, None, rules, library, warnings)
+    if not with_memory:
+        return stack
+
+    def open_memory() -> Memory:
+        return open_store_and_agenda(settings, report_error, retrain, background_io, agenda_poll_s)
+
+    if memory_when_ready:
+        check_database(settings.db)
+        stack.open_when_ready = open_memory
+    else:
+        stack.attach(open_memory())
+    stack.train_when_ready = retrain
+    return stack
+
+
+def check_database(db: str | None) -> None:
+    """Refuse now, in the same words, what opening the store and the agenda would refuse:
+    a database that cannot be opened, a schema this dms cannot use, a table missing.
+
+    Reads the schema versions with SQLAlchemy's Core (milliseconds): the daemon says it is
+    ready only on a database it can use, and loads the store and the agenda after.
+    """
+    from sqlalchemy.exc import SQLAlchemyError
+
+    from agenda import AgendaError
+    from agenda import migrations as agenda_schema
+    from memory import ProfileError
+    from memory import migrations as profile_schema
+    from memory.db import as_url, default_url
+    from memory.errors import one_line
+
+    url = db or default_url()
+    try:
+        engine, _ = profile_schema.open_checked(as_url(url))
+    except ProfileError as error:
+        raise ConfigError(f"database {url}: {error}") from None
+    try:
+        with engine.connect() as connection:
+            agenda_schema.needs_tables(connection)
+    except AgendaError as error:
+        raise ConfigError(f"agenda {url}: {error}") from None
+    except SQLAlchemyError as error:
+        raise ConfigError(f"database {url}: {one_line(error)}") from None
+    finally:
+        engine.dispose()
+
+
+def open_store_and_agenda(
+    settings: Settings,
+    report_error: Callable[[str, str], None],
+    retrain: bool,
+    background_io: bool,
+    agenda_poll_s: float | None,
+) -> Memory:
+    """The profile store, its background writer, the chooser and the agenda on
+    ``settings.db``; ConfigError (one line) when the database cannot be opened."""
+    # Imported here: the daemon opens them after ready (see Stack.when_ready).
+    from sqlalchemy.engine import make_url
+
+    from agenda import Agenda, AgendaError
+    from dms.profiles import ProfileService
+    from memory import ActivityChooser, PreferenceModel, ProfileError, ProfileStore, QuestionBank
+    from memory.db import as_url, default_url
+
+    url = settings.db or default_url()
+    try:
+        store = ProfileStore(url, WRITER_BUSY_TIMEOUT_S if background_io else None)
+    except ProfileError as error:
+        raise ConfigError(f"database {url}: {error}") from None
+    profiles = ProfileService(
         store,
-        agenda,
-        rules,
-        library,
-        warnings,
-        chooser=chooser,
-        train_when_ready=retrain and chooser is not None,
+        report_error,
+        threaded=background_io,
+        owner=settings.robot_id,
+        spool_dir=settings.storage.spool_dir,
+        memory_bound=settings.storage.memory_bound,
     )
+    log.debug(
+        "storage: profiles and agenda in %s; writes go through a background writer"
+        " (spare spool folder %s, %d writes kept in memory at most)",
+        make_url(as_url(url)).render_as_string(hide_password=True),
+        settings.storage.spool_dir or "none",
+        settings.storage.memory_bound,
+    )
+    if retrain:
+        # Trained after ready (Stack.when_ready): even the seed personas' fit cost
+        # the start 20-40 ms.
+        chooser = ActivityChooser(PreferenceModel.untrained(), store)
+    else:  # the simulator: trained here, so that a seeded run never depends on threads
+        try:
+            model = PreferenceModel.train(store)
+        except (ProfileError, ValueError):
+            model = PreferenceModel.from_seed()
+        chooser = ActivityChooser(model, store, retrain_every_s=math.inf)
+
+    def user_exists(user_id: str) -> bool:
+        return profiles.met(user_id) or user_id in store.list_ids()
+
+    try:
+        agenda = Agenda(
+            url,
+            user_exists=user_exists,
+            background=background_io,
+            claimer=settings.robot_id,
+            poll_s=agenda_poll_s,
+            report=report_error,
+            spool_dir=settings.storage.spool_dir,
+        )
+    except AgendaError as error:
+        profiles.close()
+        store.close()
+        raise ConfigError(f"agenda {url}: {error}") from None
+    return Memory(store, profiles, chooser, QuestionBank.default(), agenda)

@@ -187,19 +187,41 @@ class ZenohBus:
     def _key(self, key: str) -> str:
         return keys.absolute(self.robot_id, key)
 
-    def start(
-        self,
-        on_input: InputHandler,
-        on_liveliness: LivelinessHandler,
-        queries: Mapping[str, QueryHandler],
-    ) -> None:
-        """Open the session, subscribe to every input and serve ``queries``.
+    def start(self, queries: Mapping[str, QueryHandler]) -> None:
+        """Open the session, serve ``queries`` and declare the publishers; no input is
+        heard until :meth:`listen`.
 
         ``queries`` maps a relative key (``dms/state``) or prefix ending in ``/``
         (``users/``) to its handler.
         """
         session = self._session = open_session(self._config)
         self.refuse_if_alive()
+        for key, handler in queries.items():
+            expr = self._key(key + "**") if key.endswith("/") else self._key(key)
+            self._entities.append(session.declare_queryable(expr, self._serve(handler)))
+        for key in (
+            keys.DMS_STATE,
+            keys.DMS_DECISION,
+            keys.DMS_ERRORS,
+            keys.ROBOT_COMMAND,
+            keys.ROBOT_JOINTS,
+        ):
+            # The state and the joints come again next tick, so a congested link may drop
+            # one; a decision, a rejection or a robot command is said once, so it waits for
+            # room instead (Zenoh closes a link blocked for longer than its block timeout).
+            congestion = (
+                zenoh.CongestionControl.DROP
+                if key in (keys.DMS_STATE, keys.ROBOT_JOINTS)
+                else zenoh.CongestionControl.BLOCK
+            )
+            self._publishers[key] = session.declare_publisher(
+                self._key(key), encoding=JSON, express=True, congestion_control=congestion
+            )
+
+    def listen(self, on_input: InputHandler, on_liveliness: LivelinessHandler) -> None:
+        """Subscribe to every input and to the input modules' ``alive/`` tokens."""
+        session = self._session
+        assert session is not None, "start() first"
         robot = self.robot_id
 
         def on_sample(sample: zenoh.Sample) -> None:
@@ -231,27 +253,6 @@ class ZenohBus:
         self._entities.append(
             session.liveliness().declare_subscriber(self._key("alive/**"), on_token, history=True)
         )
-        for key, handler in queries.items():
-            expr = self._key(key + "**") if key.endswith("/") else self._key(key)
-            self._entities.append(session.declare_queryable(expr, self._serve(handler)))
-        for key in (
-            keys.DMS_STATE,
-            keys.DMS_DECISION,
-            keys.DMS_ERRORS,
-            keys.ROBOT_COMMAND,
-            keys.ROBOT_JOINTS,
-        ):
-            # The state and the joints come again next tick, so a congested link may drop
-            # one; a decision, a rejection or a robot command is said once, so it waits for
-            # room instead (Zenoh closes a link blocked for longer than its block timeout).
-            congestion = (
-                zenoh.CongestionControl.DROP
-                if key in (keys.DMS_STATE, keys.ROBOT_JOINTS)
-                else zenoh.CongestionControl.BLOCK
-            )
-            self._publishers[key] = session.declare_publisher(
-                self._key(key), encoding=JSON, express=True, congestion_control=congestion
-            )
 
     def refuse_if_alive(self, timeout_s: float = ALIVE_QUERY_TIMEOUT_S) -> None:
         """Raise ConfigError when another daemon already declares this robot's ``alive/dms``.

@@ -3,7 +3,10 @@
 The loop ticks at 2 Hz against monotonic deadlines and at once when an urgent input
 (a touch, a request, a screen choice, speech) arrives. Each tick's decisions are
 published on ``dms/decision`` and printed, then the state on ``dms/state``. The
-``alive/dms`` token is declared only once everything is ready. SIGINT and SIGTERM
+``alive/dms`` token is declared once the daemon has published its first state and hears
+its inputs, on a database it has checked; the profile store and the agenda open right
+after (their ORM is a third of what it imports), before the next tick, and the
+``users/`` and ``agenda/`` queries asked meanwhile wait for them. SIGINT and SIGTERM
 stop the running activity and flush the store; the exit code is then 130 after SIGINT
 (Ctrl-C, as a shell reports it) and 0 after SIGTERM (a supervisor's stop). SIGHUP
 reloads the rules and the behaviors, and so does saving them (:mod:`dms.watch`).
@@ -30,7 +33,6 @@ from types import FrameType
 from typing import Any
 
 from activities import BehaviorLibrary, reload_rules_and_behaviors
-from agenda.zenoh_api import ALL_USERS, handle_query
 from dms.assembly import Stack, build_stack
 from dms.bus import ZenohBus, make_config
 from dms.config import Settings
@@ -69,6 +71,9 @@ DECISIONS_KEY = "dms/decisions"
 """The queryable that answers with the last :data:`RECENT_DECISIONS` decisions (a viewer
 opened mid-session shows them)."""
 RECENT_DECISIONS = 50
+MEMORY_WAIT_S = 5.0
+"""How long a ``users/`` or ``agenda/`` query asked right after ready waits for the
+store and the agenda to open, before its error reply says to ask again."""
 
 NOT_SERVED = (
     "personal data is not served to other processes: set [privacy] serve_profiles = true"
@@ -184,7 +189,10 @@ class Daemon:
             on_command=self._publish_command,
             report_error=self.report_error,
             rng=random.Random(settings.seed),
+            memory_when_ready=True,
         )
+        self._memory_opened = threading.Event()
+        """Set once :meth:`start` has opened the store and the agenda (or failed to)."""
         library, rules = self.stack.library, self.stack.rules
 
         def reload() -> list[tuple[str, str]]:
@@ -263,20 +271,29 @@ class Daemon:
             return False, {"error": "no tick yet"}
         return True, self._stamped(state).model_dump(mode="json")
 
+    def _opened(self) -> None:
+        """Wait for the store and the agenda, which open right after ready."""
+        if not self._memory_opened.wait(MEMORY_WAIT_S):
+            raise QueryRefused("the profile store and the agenda are still opening: ask again")
+
     def _query_users(self, key: str, _payload: bytes | None) -> tuple[bool, Any]:
-        store = self.stack.store
         user_id = self._personal_subject(key, keys.USERS_PREFIX)
+        self._opened()
+        store = self.stack.store
         if store is None:
             return False, {"error": "no profile store"}
-        if user_id in ALL_USERS:
+        if user_id in keys.ALL_USERS:
             return True, {"users": store.list_ids()}
         return True, store.export(user_id)
 
     def _query_agenda(self, key: str, payload: bytes | None) -> tuple[bool, Any]:
-        agenda = self.stack.agenda
         user_id = self._personal_subject(key, keys.AGENDA_PREFIX)
+        self._opened()
+        agenda = self.stack.agenda
         if agenda is None:
             return False, {"error": "no agenda"}
+        from agenda.zenoh_api import handle_query  # loaded with the agenda, after ready
+
         # The agenda has its own lock and does its database work off it: holding the
         # daemon's lock here would make the tick wait for the database.
         return handle_query(agenda, user_id, payload, self.clock.now())
@@ -291,7 +308,7 @@ class Daemon:
         if not self.settings.privacy.serve_profiles:
             raise QueryRefused(NOT_SERVED)
         user_id = key[len(prefix) :]
-        return user_id if user_id in ALL_USERS else check_identifier(user_id, "user id")
+        return user_id if user_id in keys.ALL_USERS else check_identifier(user_id, "user id")
 
     def _guarded(self, key: str, handler: QueryHandler) -> QueryHandler:
         """``handler`` that answers every query: an exception becomes an error reply
@@ -337,7 +354,8 @@ class Daemon:
     # -------------------------------------------------------------- the loop
 
     def start(self) -> None:
-        """Open Zenoh, run one tick so there is a state, then declare ``alive/dms``."""
+        """Open Zenoh and run the ready tick (before any input is heard, so that it meets
+        nobody), then listen, declare ``alive/dms`` and open the store and the agenda."""
         queries: dict[str, QueryHandler] = {
             keys.DMS_STATE: self._query_state,
             keys.USERS_PREFIX: self._query_users,
@@ -347,30 +365,38 @@ class Daemon:
             DECISIONS_KEY: self._query_decisions,
             TRY_KEY: self.trying.serve,
         }
-        self.bus.start(
-            self.on_input,
-            self.on_liveliness,
-            {key: self._guarded(key, handler) for key, handler in queries.items()},
-        )
+        self.bus.start({key: self._guarded(key, handler) for key, handler in queries.items()})
+        self.reloader.start()
+        self.watch.start()
+        for key, warning in self.stack.warnings:
+            self.report_error(key, warning)
+        self._run_tick(urgent=False)
+        self.bus.listen(self.on_input, self.on_liveliness)
         log.debug(
             "bus: subscribed to %d input keys and the alive/** tokens under robots/%s/; serving %s",
             len(keys.INPUT_KEYS),
             self.settings.robot_id,
             ", ".join(queries),
         )
-        self.reloader.start()
-        self.watch.start()
-        for key, warning in self.stack.warnings:
-            self.report_error(key, warning)
+        self.bus.declare_alive()
+        self.notifier.ready(f"robot {self.settings.robot_id} alive")
+        self.notifier.watchdog()
+        bus_settings = self.settings.zenoh
+        log.info(
+            "robot %s ready on %s (alive/dms declared); Ctrl-C stops",
+            self.settings.robot_id,
+            ", ".join(bus_settings.listen) or f"the endpoints of {bus_settings.config_file}",
+            extra={"event": "ready", "listen": bus_settings.listen},
+        )
+        try:
+            # what can wait: the store and the agenda, then the preference model's training
+            self.stack.when_ready(self._lock)
+        finally:
+            self._memory_opened.set()
         agenda = self.stack.agenda
         if agenda is not None:
             for item in agenda.recover(self.clock.now()):
                 log.info("agenda item %s fell due while the daemon was down", item.item_id)
-        self._run_tick(urgent=False)
-        self.bus.declare_alive()
-        self.notifier.ready(f"robot {self.settings.robot_id} alive")
-        self.notifier.watchdog()
-        self.stack.when_ready()  # work that can wait (training) starts after ready
 
     def _run_tick(self, urgent: bool) -> TickRecord | None:
         """One tick, published; a fault the controller's own barrier missed is reported
@@ -551,13 +577,6 @@ def run_daemon(
         # a full collection walks (45 ms each: a late tick).
         gc.freeze()
         gc.enable()
-        where = ", ".join(settings.zenoh.listen) or f"the endpoints of {settings.zenoh.config_file}"
-        log.info(
-            "robot %s ready on %s (alive/dms declared); Ctrl-C stops",
-            settings.robot_id,
-            where,
-            extra={"event": "ready", "listen": settings.zenoh.listen},
-        )
         if visitor is not None:
             if start_visitor is None:
                 raise ConfigError("--visitor needs the simulator: use dms run")

@@ -28,14 +28,11 @@ class InMemoryBus:
         self.ignored_tokens = DropTally()
         """As :attr:`dms.bus.ZenohBus.ignored_tokens` (tests call :meth:`token` directly)."""
 
-    def start(
-        self,
-        on_input: InputHandler,
-        on_liveliness: LivelinessHandler,
-        queries: Mapping[str, QueryHandler],
-    ) -> None:
-        self._on_input, self._on_liveliness = on_input, on_liveliness
+    def start(self, queries: Mapping[str, QueryHandler]) -> None:
         self._queries = dict(queries)
+
+    def listen(self, on_input: InputHandler, on_liveliness: LivelinessHandler) -> None:
+        self._on_input, self._on_liveliness = on_input, on_liveliness
 
     def publish(self, key: str, payload: Mapping[str, Any]) -> None:
         # Round-trip through JSON so tests see exactly what would go on the wire.
@@ -50,12 +47,12 @@ class InMemoryBus:
     # ---------------------------------------------------------------- test side
 
     def inject(self, key: str, payload: Mapping[str, Any] | bytes) -> None:
-        assert self._on_input is not None, "start() first"
+        assert self._on_input is not None, "listen() first"
         raw = payload if isinstance(payload, bytes) else json.dumps(payload).encode()
         self._on_input(key, raw)
 
     def token(self, key: str, alive: bool) -> None:
-        assert self._on_liveliness is not None, "start() first"
+        assert self._on_liveliness is not None, "listen() first"
         self._on_liveliness(key, alive)
 
     def query(self, key: str, payload: Mapping[str, Any] | None = None) -> tuple[bool, Any]:

@@ -8,15 +8,15 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from activities import BehaviorLibrary
-from agenda import Agenda
 from dms.kernel.expression import ExpressionArbiter
-from dms.profiles import ProfileService
 from dms.scene import Scene
-from memory import ActivityChooser, QuestionBank
 from motivation import MotivationModel
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the daemon opens its store and agenda after ready: not imported here
+    from agenda import Agenda
+    from dms.profiles import ProfileService
     from dms.rules import LiveRules
+    from memory import ActivityChooser, QuestionBank
 
 log = logging.getLogger(__name__)
 

@@ -42,6 +42,8 @@ ROBOT_COMMAND = "robot/command"
 # Queryables with a trailing segment.
 USERS_PREFIX = "users/"
 AGENDA_PREFIX = "agenda/"
+ALL_USERS = ("*", "**", "")
+"""What follows ``users/`` or ``agenda/`` in a query for every user's data."""
 
 # Liveliness.
 ALIVE_PREFIX = "alive/"

@@ -27,6 +27,7 @@ import zenoh
 
 from tests.integration.harness import (
     READY_TIMEOUT_S,
+    Collector,
     StderrLines,
     client_session,
     free_port,
@@ -148,11 +149,13 @@ def test_a_bad_environment_variable_is_one_line(tmp_path: Path) -> None:
 
 
 def test_a_reload_and_missed_ticks_are_logged(tmp_path: Path) -> None:
-    with daemon(tmp_path, "fromtoml", "--log-level", "info") as (process, _session):
+    with daemon(tmp_path, "fromtoml", "--log-level", "info") as (process, session):
         process.wait_line(lambda line: "ready on" in line)
+        states = Collector(session, "robots/fromtoml/dms/state")
         process.proc.send_signal(signal.SIGHUP)
         reloaded = process.wait_line(lambda line: "rules and behaviors reloaded" in line)
         assert " INFO dms.reloader: " in reloaded and "robot_id=fromtoml" in reloaded
+        states.wait_count(1, READY_TIMEOUT_S)  # the loop runs (its store opened after ready)
         # Freeze the process for three periods: the loop then finds itself behind.
         before = len(process.lines())
         process.proc.send_signal(signal.SIGSTOP)

@@ -281,16 +281,16 @@ def test_the_refusal_is_per_robot_id() -> None:
     """On one bus, ``alive/dms`` of robot ``a`` refuses another ``a``, not a ``b``."""
     port = free_port()
     first = ZenohBus("a", make_config([f"tcp/127.0.0.1:{port}"]))
-    first.start(lambda _k, _p: None, lambda _k, _a: None, {})
+    first.start({})
     first.declare_alive()
     peers = [f"tcp/127.0.0.1:{port}"]
     try:
         again = ZenohBus("a", make_config([f"tcp/127.0.0.1:{free_port()}"], peers))
         with pytest.raises(ConfigError, match="robot a is already running"):
-            again.start(lambda _k, _p: None, lambda _k, _a: None, {})
+            again.start({})
         again.close()
         other = ZenohBus("b", make_config([f"tcp/127.0.0.1:{free_port()}"], peers))
-        other.start(lambda _k, _p: None, lambda _k, _a: None, {})
+        other.start({})
         other.close()
     finally:
         first.close()

@@ -19,7 +19,7 @@ from dms.config import Settings
 from dms.daemon import Daemon
 from dms.kernel.activity_names import ENTERTAINMENT_ACTIVITIES
 from dms.local_bus import InMemoryBus
-from memory import PreferenceModel, ProfileStore
+from memory import ActivityChooser, PreferenceModel, ProfileStore
 from sim.robot import SimRobot
 from tests.memory.conftest import NOW
 
@@ -53,22 +53,23 @@ def test_the_daemon_decides_untrained_until_ready_then_by_the_trained_model(
         bus=bus,
         sim_robot=lambda seed: SimRobot(rng_seed=seed),
     )
-    chooser = daemon.stack.chooser
-    assert chooser is not None
+    assert daemon.stack.chooser is None and daemon.stack.store is None  # opened after ready
     try:
         seed = PreferenceModel.from_seed()
-        assert chooser.model.training_size == 0  # nothing trained on the start path
-        assert chooser.model.win_scores(FEATURES) is None  # flat beliefs meanwhile
-        alive_when_training: list[bool] = []
-        retrain = chooser.retrain
+        when_training: list[tuple[bool, int, bool]] = []
+        retrain = ActivityChooser.retrain
 
-        def spy() -> object:
-            alive_when_training.append(bus.alive)
-            return retrain()
+        def spy(chooser: ActivityChooser) -> None:
+            # alive/dms declared, nothing trained yet, beliefs flat meanwhile
+            flat = chooser.model.win_scores(FEATURES) is None
+            when_training.append((bus.alive, chooser.model.training_size, flat))
+            retrain(chooser)
 
-        monkeypatch.setattr(chooser, "retrain", spy)
+        monkeypatch.setattr(ActivityChooser, "retrain", spy)
         daemon.start()
-        assert alive_when_training == [True]  # training started once, after alive/dms
+        assert when_training == [(True, 0, True)]  # training started once, after alive/dms
+        chooser = daemon.stack.chooser
+        assert chooser is not None and chooser is daemon.stack.controller.deps.chooser
         assert chooser.wait_retrained(60)
         assert chooser.model.training_size > seed.training_size
         assert chooser.model.predict_ranking(FEATURES, random.Random(0))[0] == favorite
@@ -123,9 +124,9 @@ def test_closing_waits_for_a_retraining_under_way(
         bus=InMemoryBus(),
         sim_robot=lambda seed: SimRobot(rng_seed=seed),
     )
+    daemon.start()
     chooser = daemon.stack.chooser
     assert chooser is not None
-    daemon.start()
     assert entered.wait(60)
     closer = threading.Thread(target=daemon.close)
     closer.start()
