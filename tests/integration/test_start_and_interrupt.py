@@ -5,7 +5,10 @@ Each case is a real process: SIGINT is sent right after it is spawned, while it 
 (the moment is an import line of ``python -X importtime``), while it sets up a fresh
 database (its first log line) and once it is ready. Every wait is for a line on stderr.
 The quiet exit starts with ``dms.cli.main``: Python's own start and the import of
-``dms.cli`` (typer) come before it, a few tens of milliseconds.
+``dms.cli`` (typer) come before it, a few tens of milliseconds. A signal that comes
+while Python imports its own site module ends it with Python's "Fatal Python error"
+and exit 1, before any code of the project runs: the first case allows that outcome,
+and checks that nothing but Python's frozen modules had run.
 """
 
 from __future__ import annotations
@@ -25,6 +28,9 @@ pytestmark = pytest.mark.integration
 
 INTERRUPTED = 130
 """The exit code after Ctrl-C (128 + SIGINT), as a shell reports it."""
+PYTHON_START_INTERRUPTED = 1
+"""Python's exit code when SIGINT comes while it imports its own site module, after it
+has put in its handler and before it runs any code of the program (a few milliseconds)."""
 
 
 _SPAWNED: list[subprocess.Popen[str]] = []
@@ -79,6 +85,13 @@ def interrupt(proc: subprocess.Popen[str], lines: StderrLines) -> tuple[int, str
 def test_ctrl_c_right_after_spawn_is_quiet(tmp_path: Path) -> None:
     proc = spawn(tmp_path)
     code, stderr = interrupt(proc, StderrLines(proc))
+    if code == PYTHON_START_INTERRUPTED:
+        # Python's own start (its site module) took the signal: none of the project's
+        # code had run, every frame Python prints is one of its own frozen modules.
+        assert "Fatal Python error: init_import_site" in stderr, stderr
+        frames = [line for line in stderr.splitlines() if line.strip().startswith("File ")]
+        assert frames and all('File "<frozen ' in frame for frame in frames), stderr
+        return
     # Before Python has put in its handler the signal's default action ends the process,
     # which a shell reports as 130 too.
     assert code in (INTERRUPTED, -signal.SIGINT), stderr
