@@ -2,9 +2,9 @@
 
 - time from exec of ``dms run`` to its liveliness token ``robots/<id>/alive/dms``, seen
   by another process's Zenoh session: median and max of ``--starts`` starts (default 10),
-  each on a free loopback port with a fresh temporary SQLite database (``ready_s_*``:
-  the schema is created), and as many restarts on one database already at head
-  (``restart_s_*``: what a supervisor restarting a crashed daemon waits);
+  each on a free loopback port with a fresh temporary SQLite database (``ready_s_*``;
+  its schema is made right after ready), and as many restarts on one database already
+  at head (``restart_s_*``: what a supervisor restarting a crashed daemon waits);
 - beside them, the time of a bare ``python -c "import numpy, sqlalchemy, zenoh, pydantic"``
   run before each start (``bare_import_s_median``), and the starts as multiples of it
   (``ready_vs_bare``, ``restart_vs_bare``; target <= 2): the machine's speed and load
