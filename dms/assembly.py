@@ -38,7 +38,9 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 AGENDA_POLL_S = 10.0
-"""How often a robot's agenda looks for items added elsewhere (another robot, the CLI)."""
+"""How often a robot's agenda looks for items added elsewhere (another robot, the CLI):
+the agenda's own default (``agenda.service.POLL_S``), written here so that this module
+does not import the agenda, which the daemon loads after it is ready."""
 WRITER_BUSY_TIMEOUT_S = 1.0
 """SQLite lock wait of the daemon's store writer: past it the writes are spooled."""
 TRAINING_STOP_WAIT_S = 10.0
@@ -268,12 +270,10 @@ def open_store_and_agenda(
     """The profile store, its background writer, the chooser and the agenda on
     ``settings.db``; ConfigError (one line) when the database cannot be opened."""
     # Imported here: the daemon opens them after ready (see Stack.when_ready).
-    from sqlalchemy.engine import make_url
-
     from agenda import Agenda, AgendaError
     from dms.profiles import ProfileService
     from memory import ActivityChooser, PreferenceModel, ProfileError, ProfileStore, QuestionBank
-    from memory.db import as_url, default_url
+    from memory.db import as_url, default_url, shown_url
 
     url = settings.db or default_url()
     try:
@@ -291,7 +291,7 @@ def open_store_and_agenda(
     log.debug(
         "storage: profiles and agenda in %s; writes go through a background writer"
         " (spare spool folder %s, %d writes kept in memory at most)",
-        make_url(as_url(url)).render_as_string(hide_password=True),
+        shown_url(as_url(url)),
         settings.storage.spool_dir or "none",
         settings.storage.memory_bound,
     )
