@@ -236,9 +236,7 @@ def upgrade_profiles(url: str) -> list[str]:
             before = _revision(engine)
             migrations.upgrade_engine(engine)
             after = _revision(engine)
-            from memory.models import Base
-
-            recreated = migrations.HISTORY.recreate_missing(engine, Base.metadata)
+            recreated = migrations.HISTORY.recreate_missing(engine)
         finally:
             engine.dispose()
     except (SQLAlchemyError, ImportError, OSError) as error:

@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import ast
 import logging
-from collections.abc import Callable
 from functools import cached_property
+from importlib import import_module
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -67,11 +67,12 @@ class SchemaHistory:
         folder: Path,
         version_table: str,
         tables: tuple[str, ...],
-        models: Callable[[], MetaData] | None = None,
+        models: str | None = None,
     ) -> None:
-        """``models``: gives the package's tables at head (its ORM metadata), from which a
-        new database is created; None: always through the migrations. A function, so that
-        checking a database (:meth:`current`, :meth:`newer`) does not load the ORM."""
+        """``models``: the module of the package's ORM models (its ``Base``), whose tables
+        at head a new database is created from; None: always through the migrations.
+        Imported only then, so that checking a database (:meth:`current`,
+        :meth:`newer`) does not load the ORM."""
         self.folder = folder
         self.version_table = version_table
         self.tables = tables
@@ -178,6 +179,7 @@ class SchemaHistory:
         of the daemon 0.3 s more.
         """
         if revision == "head" and self.models is not None:
+            models = self.metadata()
             with engine.begin() as connection:
                 if connection.dialect.name == "sqlite":
                     # pysqlite runs DDL outside any transaction unless one is open: a
@@ -187,12 +189,18 @@ class SchemaHistory:
                     # could not become a write without SQLITE_BUSY.
                     connection.exec_driver_sql("BEGIN IMMEDIATE")
                 if not self.installed(connection):
-                    self._create_at_head(connection, self.models())
+                    self._create_at_head(connection, models)
                     return
         from alembic import command
 
         with engine.begin() as connection:
             command.upgrade(self.config(connection), revision)
+
+    def metadata(self) -> MetaData:
+        """The package's tables at head (``Base.metadata`` of :attr:`models`)."""
+        assert self.models is not None, "a history without models"
+        metadata: MetaData = import_module(self.models).Base.metadata
+        return metadata
 
     def _create_at_head(self, connection: Connection, metadata: MetaData) -> None:
         head = self.head()
@@ -208,7 +216,7 @@ class SchemaHistory:
         versions.create(connection)
         connection.execute(insert(versions).values(version_num=head))
 
-    def recreate_missing(self, engine: Engine, metadata: MetaData) -> list[str]:
+    def recreate_missing(self, engine: Engine) -> list[str]:
         """Recreate, empty, the package's tables missing at head (dropped by hand, a
         partial restore): what ``dms db upgrade`` offers for a damaged database.
         Returns their names."""
@@ -218,6 +226,7 @@ class SchemaHistory:
             names = set(inspect(connection).get_table_names())
             missing = [name for name in self.tables if name not in names]
             if missing:
+                metadata = self.metadata()
                 tables = [metadata.tables[name] for name in missing]
                 metadata.create_all(connection, tables=tables)
             return missing

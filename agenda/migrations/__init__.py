@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sqlalchemy import Connection, MetaData, inspect
+from sqlalchemy import Connection, inspect
 
 from agenda.errors import AgendaError
 from memory.db import make_engine
@@ -20,16 +20,7 @@ VERSION_TABLE = "alembic_version_agenda"
 HERE = Path(__file__).resolve().parent
 
 TABLES = ("agenda_items", "agenda_occurrences", "agenda_claims")
-
-
-def models() -> MetaData:
-    """The agenda's tables at head (its ORM models)."""
-    from agenda.models import Base
-
-    return Base.metadata
-
-
-HISTORY = SchemaHistory(HERE, VERSION_TABLE, TABLES, models)
+HISTORY = SchemaHistory(HERE, VERSION_TABLE, TABLES, "agenda.models")
 head = HISTORY.head
 current = HISTORY.current
 installed = HISTORY.installed
@@ -41,7 +32,7 @@ def upgrade(url: str) -> None:
     engine = make_engine(url)
     try:
         upgrade_engine(engine)
-        HISTORY.recreate_missing(engine, models())
+        HISTORY.recreate_missing(engine)
     finally:
         engine.dispose()
 

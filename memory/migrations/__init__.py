@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sqlalchemy import Connection, Engine, MetaData, inspect
+from sqlalchemy import Connection, Engine, inspect
 from sqlalchemy.exc import ArgumentError, SQLAlchemyError
 
 from memory.db import make_engine, shown_url
@@ -31,15 +31,7 @@ TABLES = (
     "applied_writes",
 )
 
-
-def models() -> MetaData:
-    """The store's tables at head (its ORM models)."""
-    from memory.models import Base
-
-    return Base.metadata
-
-
-HISTORY = SchemaHistory(HERE, VERSION_TABLE, TABLES, models)
+HISTORY = SchemaHistory(HERE, VERSION_TABLE, TABLES, "memory.models")
 head = HISTORY.head
 current = HISTORY.current
 installed = HISTORY.installed
