@@ -26,12 +26,6 @@ MAX_GRACE_S = 7 * 86400
 MAX_TEXT = 500
 
 
-def one_line(error: BaseException) -> str:
-    """A database error's first line, for a one-line AgendaError."""
-    text = str(getattr(error, "orig", None) or error)
-    return text.splitlines()[0] if text else type(error).__name__
-
-
 def prepare_schema(engine: Engine) -> None:
     """At open: create the agenda's tables in a new database, or check that they are
     at the revision this code needs and all there (AgendaError otherwise)."""

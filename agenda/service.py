@@ -61,12 +61,13 @@ from agenda.errors import AgendaError, AgendaNotFound
 from agenda.index import US_PER_S, AgendaIndex, Entry, MissedRun
 from agenda.items import AgendaItem, DueItem, ItemSpec, Occurrence, Outcome, UpcomingItem
 from agenda.models import ClaimRow, ItemRow, OccurrenceRow
-from agenda.rows import Schedules, item_of, occurrence_of, one_line, prepare_schema, validate
+from agenda.rows import Schedules, item_of, occurrence_of, prepare_schema, validate
 from agenda.schedule import from_us, to_us
 from agenda.seen import SeenUsers
 from agenda.user_data import USER_DATA
 from agenda.writer import journal_path
 from memory.db import make_engine
+from memory.errors import one_line
 from memory.watch import sqlite_file
 from memory.writer import REPLAY_BATCH, Writer, WriterHealth
 

@@ -153,9 +153,9 @@ def upgrade(
     from sqlalchemy.exc import SQLAlchemyError
 
     from agenda import migrations as agenda_migrations
-    from memory.cli import first_line, refuse_newer, upgrade_profiles
+    from memory.cli import refuse_newer, upgrade_profiles
     from memory.db import default_url
-    from memory.errors import ProfileError
+    from memory.errors import ProfileError, one_line
 
     url = db or default_url()
     refuse_newer(agenda_migrations.HISTORY, url, "agenda")  # before any change is made
@@ -164,7 +164,7 @@ def upgrade(
     try:
         agenda_migrations.upgrade(url)
     except (SQLAlchemyError, ImportError, OSError) as error:
-        raise ProfileError(f"cannot upgrade the agenda in {url}: {first_line(error)}") from None
+        raise ProfileError(f"cannot upgrade the agenda in {url}: {one_line(error)}") from None
     typer.echo("agenda: at head")
 
 

@@ -28,6 +28,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TextIO
 
+from memory.errors import one_line
 from memory.spool import MAX_BINDS, open_spool, write_spool
 
 log = logging.getLogger(__name__)
@@ -37,11 +38,6 @@ MEMORY_BOUND = 10_000
 (the default of ``[storage] memory_bound``)."""
 RETRY_S = (0.25, 8.0)
 """First and longest wait between two tries to put a backlog kept in memory on disk."""
-
-
-def _one_line(error: BaseException) -> str:
-    text = str(error).strip()
-    return text.splitlines()[0] if text else type(error).__name__
 
 
 class Backlog:
@@ -231,7 +227,7 @@ class Backlog:
         """A spool that cannot be read is left alone: never overwritten, never removed."""
         self._unreadable.add(place)
         self.places = [p for p in self.places if p != place]
-        self._tell(f"cannot read the spool {place} ({_one_line(error)}); it is left as it is")
+        self._tell(f"cannot read the spool {place} ({one_line(error)}); it is left as it is")
 
     def _settle(self) -> None:
         """Write the whole backlog to the first place that takes it; memory when none does."""
@@ -242,7 +238,7 @@ class Backlog:
                 self._file = place.open("a", encoding="utf-8")
             except OSError as error:
                 self._close_file()
-                self._failures[place] = _one_line(error)
+                self._failures[place] = one_line(error)
                 continue
             self._at, self._on_disk = place, True
             self._wait = RETRY_S[0]
@@ -275,7 +271,7 @@ class Backlog:
             os.fsync(self._file.fileno())
         except (OSError, ValueError) as error:
             if self._at is not None:
-                self._failures[self._at] = _one_line(error)
+                self._failures[self._at] = one_line(error)
             self._on_disk = False
             self._settle()
 

@@ -25,7 +25,7 @@ from sqlalchemy.exc import ArgumentError, SQLAlchemyError
 
 from memory import migrations
 from memory.db import as_url, default_url, make_engine
-from memory.errors import ProfileError
+from memory.errors import ProfileError, one_line
 from memory.profile import ALIASES, FIELDS, validate_fields
 from memory.schema_history import SchemaHistory
 from memory.store import ProfileStore
@@ -51,7 +51,7 @@ def existing_url(db: str | None) -> str:
     try:
         parsed = make_url(url)
     except ArgumentError as error:
-        raise ProfileError(f"cannot open database {url!r}: {first_line(error)}") from None
+        raise ProfileError(f"cannot open database {url!r}: {one_line(error)}") from None
     database = parsed.database
     local = parsed.get_backend_name() == "sqlite" and database and database != ":memory:"
     if local and database and not Path(database).expanduser().exists():
@@ -240,7 +240,7 @@ def upgrade_profiles(url: str) -> list[str]:
         finally:
             engine.dispose()
     except (SQLAlchemyError, ImportError, OSError) as error:
-        raise ProfileError(f"cannot upgrade {url}: {first_line(error)}") from None
+        raise ProfileError(f"cannot upgrade {url}: {one_line(error)}") from None
     said = [f"profiles: {before or 'empty'} -> {after}"]
     if recreated:
         said.append(f"profiles: recreated the missing table(s) {', '.join(recreated)}, empty")
@@ -270,11 +270,6 @@ def refuse_newer(history: SchemaHistory, url: str, what: str) -> None:
         f"cannot upgrade {url}: its {what} schema {found} is newer than this dms knows "
         f"(up to {history.head()}); upgrade dms to use this database"
     )
-
-
-def first_line(error: BaseException) -> str:
-    lines = str(getattr(error, "orig", None) or error).strip().splitlines()
-    return lines[0] if lines else type(error).__name__
 
 
 def _revision(engine: Engine) -> str | None:
