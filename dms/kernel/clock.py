@@ -15,7 +15,8 @@ be reported, and nothing that measures time moves with it.
 
 from __future__ import annotations
 
-import threading
+import contextlib
+import queue
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -176,39 +177,58 @@ class Ticker:
 
     :meth:`wake` lets another thread (an urgent input) end the current wait early;
     the woken iteration yields the same deadline again with ``urgent=True``.
+
+    :meth:`wake` and :meth:`stop` take no lock of Python's: the daemon's signal handlers
+    call :meth:`stop` in the main thread, which may be inside the loop's own wait at that
+    moment, and a ``threading.Event`` there deadlocks when the handler comes while the
+    waiting thread holds the Event's lock. They put a word on a ``SimpleQueue``, whose
+    ``put`` is reentrant.
     """
 
     def __init__(self, clock: Clock, period: float = TICK_PERIOD_S) -> None:
         self._clock = clock
         self._period = period
-        self._wakeup = threading.Event()
-        self._stopped = threading.Event()
+        self._calls: queue.SimpleQueue[bool] = queue.SimpleQueue()
+        """What came during a wait: True for a stop, False for a wake."""
+        self._stopped = False
         self.missed = 0
 
     def wake(self) -> None:
         """Ask the loop to run now (an urgent input arrived)."""
-        self._wakeup.set()
+        self._calls.put(False)
 
     def stop(self) -> None:
-        self._stopped.set()
-        self._wakeup.set()
+        """End the loop before its next tick; safe in a signal handler."""
+        self._stopped = True
+        self._calls.put(True)
 
     @property
     def stopped(self) -> bool:
-        return self._stopped.is_set()
+        return self._stopped
+
+    def _woken(self, timeout: float) -> bool:
+        """Wait up to ``timeout`` for a wake or a stop; the wakes that came meanwhile
+        make one urgent tick."""
+        try:
+            self._calls.get(timeout=timeout)
+        except queue.Empty:
+            return False
+        with contextlib.suppress(queue.Empty):
+            while True:
+                self._calls.get_nowait()
+        return True
 
     def __iter__(self) -> Iterator[tuple[TickTiming | None, bool]]:
         """Yield ``(timing, urgent)``: timing for a periodic tick, None for an urgent wake."""
         deadline = self._clock.monotonic()
         index = 0
-        while not self._stopped.is_set():
+        while not self._stopped:
             remaining = deadline - self._clock.monotonic()
             if remaining > 0:
-                woke = self._wakeup.wait(remaining)
-                if self._stopped.is_set():
+                woke = self._woken(remaining)
+                if self._stopped:
                     return
                 if woke:
-                    self._wakeup.clear()
                     yield None, True
                     continue
             started = self._clock.monotonic()
