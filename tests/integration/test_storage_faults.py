@@ -12,13 +12,14 @@ import json
 import re
 import sqlite3
 import subprocess
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 import zenoh
 
-from tests.integration.harness import Collector, DaemonProcess, client_session, put
+from tests.integration.harness import Collector, DaemonProcess, client_session, put, query
 
 pytestmark = pytest.mark.integration
 
@@ -236,3 +237,23 @@ def test_a_deleted_database_file_is_reported_and_its_writes_spooled(tmp_path: Pa
     assert "bob" in stored_users(db)  # written from the spool, not into the deleted file
     assert stored_sessions(db) == 1
     assert not spool.exists()
+
+
+def test_an_agenda_add_on_a_full_disk_is_answered_once_and_closed_at_once(
+    tmp_path: Path, small_disk: Path
+) -> None:
+    db = small_disk / "dms.db"
+    with Running(tmp_path, db, "[privacy]\nserve_profiles = true\n") as run:
+        arrive_and_leave(run.session, run.states, "ann")
+        run.settled()
+        fill(small_disk)
+        add = {"op": "add", "kind": "reminder", "text": "Pills", "every": 3600}
+        for _ in range(3):  # each query closes at once, not at the client's timeout
+            started = time.monotonic()
+            replies = query(run.session, "agenda/ann", add)
+            took = time.monotonic() - started
+            assert len(replies) == 1, replies
+            assert took < 1.0, f"the query stayed open {took:.1f} s after its reply"
+        ok, body = replies[0]
+        assert not ok and "error" in body and "\n" not in body["error"]
+        assert run.daemon.terminate() == 0
