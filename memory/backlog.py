@@ -26,8 +26,9 @@ import time
 from collections import deque
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TextIO
+from typing import IO, Any
 
+from dms.kernel.files import open_nofollow
 from memory.errors import one_line
 from memory.spool import MAX_BINDS, open_spool, write_spool
 
@@ -70,7 +71,7 @@ class Backlog:
         """(spool file, unreadable lines, the ``.bad`` file keeping them or None when it
         could not be written) found at start."""
         self._clock = clock
-        self._file: TextIO | None = None
+        self._file: IO[Any] | None = None
         self._at: Path | None = None
         self._on_disk = True
         """Every pending entry is in the file at :attr:`_at` (or nothing is pending)."""
@@ -235,7 +236,7 @@ class Backlog:
         for place in self.places:
             try:
                 write_spool(place, self.pending, self.binds)
-                self._file = place.open("a", encoding="utf-8")
+                self._file = open_nofollow(place, "a")
             except OSError as error:
                 self._close_file()
                 self._failures[place] = one_line(error)

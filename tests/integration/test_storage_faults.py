@@ -257,3 +257,18 @@ def test_an_agenda_add_on_a_full_disk_is_answered_once_and_closed_at_once(
         ok, body = replies[0]
         assert not ok and "error" in body and "\n" not in body["error"]
         assert run.daemon.terminate() == 0
+
+
+def test_a_link_planted_as_the_spools_bad_file_is_never_written_through(tmp_path: Path) -> None:
+    db, outside = tmp_path / "dms.db", tmp_path / "outside"
+    outside.write_bytes(b"precious\n")
+    spool = tmp_path / "dms.db.mini.spool"
+    spool.write_bytes(json.dumps(GOOD_LINES[0]).encode() + b"\n" + TORN["bad_utf8"])
+    (tmp_path / "dms.db.mini.spool.bad").symlink_to(outside)
+    with Running(tmp_path, db) as run:
+        run.settled()
+        assert run.daemon.terminate() == 0
+    assert outside.read_bytes() == b"precious\n"
+    assert "zoe" in stored_users(db)  # the good record is applied all the same
+    log = run.daemon.log.read_text()
+    assert "is a symbolic link" in log and "no .bad file could be written" in log
