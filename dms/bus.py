@@ -323,13 +323,21 @@ class ZenohBus:
         assert self._session is not None
         self._token = self._session.liveliness().declare_token(self._key(keys.ALIVE_DMS))
 
-    def close(self) -> None:
+    def stop_listening(self) -> None:
+        """Withdraw ``alive/dms`` and stop hearing inputs and queries, keeping the
+        publishers: the first step of a stop, so that a flood still coming costs the
+        stopping daemon nothing while it publishes its last state."""
         with self._lock:
             if self._token is not None:
                 self._token.undeclare()
                 self._token = None
             for entity in self._entities:
                 entity.undeclare()
+            self._entities.clear()
+
+    def close(self) -> None:
+        self.stop_listening()
+        with self._lock:
             for publisher in self._publishers.values():
                 publisher.undeclare()
             self._entities.clear()
