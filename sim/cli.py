@@ -117,7 +117,7 @@ RulesOption = Annotated[
 ]
 
 
-ChooserOption = Literal["dms", "random", "fixed", "least_liked", "oracle"]
+ChooserOption = Literal["dms", "random", "fixed", "popular", "greedy", "least_liked", "oracle"]
 PopulationOption = Literal["paper", "personas", "heldout"]
 
 
@@ -260,10 +260,16 @@ def compare_command(
     population: Annotated[
         PopulationOption, typer.Option(help="The participants (as dms sim study's).")
     ] = "paper",
+    repeat: Annotated[
+        int,
+        typer.Option(
+            min=1, max=100, help="Visits of each participant; every metric is also given per visit."
+        ),
+    ] = 1,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
 ) -> None:
     """Run two designs or choosers on the same participants; per metric, both means and
-    the paired difference (B - A) with a bootstrap 95 % interval."""
+    the paired difference (B - A) with a bootstrap 95 % interval, pooled and per visit."""
     from sim.compare import compare, table, to_json
     from sim.study import study_settings
 
@@ -271,7 +277,7 @@ def compare_command(
     settings_b, raw_b = _design(design_b if design_b is not None else design_a, rules_b)
     chosen = _seeds(seeds)
     runs = len(chosen) if chosen is not None else 1
-    with _progress(2 * sessions * runs, "sessions (A, then B)") as told:
+    with _progress(2 * sessions * repeat * runs, "sessions (A, then B)") as told:
         done = {"A": 0, "B": 0}
 
         def progress(label: str, count: int) -> None:
@@ -289,6 +295,7 @@ def compare_command(
             chooser_b=chooser_b,
             seeds=chosen,
             population=population,
+            repeat=repeat,
         )
     if as_json:
         _print_json(to_json(result))

@@ -45,6 +45,7 @@ per robot choice and the time spent in activities the participant likes.
 
 from __future__ import annotations
 
+import dataclasses
 import random
 import time
 from collections.abc import Callable, Sequence
@@ -309,6 +310,11 @@ class StudyResult:
         return {
             key: [session_value(s, key) for s in self.sessions] for key in (*METRICS, *OUTCOMES)
         }
+
+    def of_visit(self, visit: int) -> StudyResult:
+        """The sessions of one visit (1..repeat) alone, as a study of one visit."""
+        sessions = [s for s in self.sessions if s.visit == visit]
+        return dataclasses.replace(self, sessions=sessions, repeat=1, decisions=[])
 
     def adaptation(self) -> dict[str, list[float]]:
         """Per visit (1..repeat): :func:`adaptation` of these sessions."""
