@@ -307,7 +307,7 @@ def compare_command(
 def sensitivity_command(
     sessions: Annotated[int, typer.Option(min=2, max=10000, help="Participants.")] = 30,
     minutes: Annotated[float, typer.Option(min=0.5, max=24 * 60, help="Session length.")] = 30.0,
-    seeds: SeedsOption = "0-2",
+    seeds: SeedsOption = "0-9",
     change: Annotated[
         float, typer.Option(min=0.01, max=0.99, help="Move each input by this share.")
     ] = 0.5,
@@ -319,17 +319,17 @@ def sensitivity_command(
     ] = Path("sensitivity"),
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
 ) -> None:
-    """Move each participant input of sim/calibration.py by ±50 % and show which Table 4
-    metric moves with it (a CSV and a tornado chart)."""
-    from sim.calibration import PARTICIPANT_INPUTS
-    from sim.sensitivity import sweep, write_csv, write_tornado
+    """Move each input of the study (the participants', the robot's, the protocol's, the
+    content's and the controller's settings) by ±50 % and show which Table 4 metric moves
+    with it, above each metric's noise floor over the seeds (a CSV and a tornado chart)."""
+    from sim.sensitivity import SWEEPABLE, sweep, write_csv, write_tornado
 
     chosen = _seeds(seeds) or [0]
-    names = list(only) if only else list(PARTICIPANT_INPUTS)
-    unknown = [name for name in names if name not in PARTICIPANT_INPUTS]
+    names = list(only) if only else list(SWEEPABLE)
+    unknown = [name for name in names if name not in SWEEPABLE]
     if unknown:
         raise typer.BadParameter(
-            f"{', '.join(unknown)}: not a participant input ({', '.join(PARTICIPANT_INPUTS)})",
+            f"{', '.join(unknown)}: not an input of the study ({', '.join(SWEEPABLE)})",
             param_hint="--only",
         )
     with _progress(len(chosen) * (1 + 2 * len(names)), "studies") as told:
