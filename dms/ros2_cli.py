@@ -85,7 +85,7 @@ def ros2(
     """Bridge a robot's keys to ROS 2 and back (node dms_bridge in /robots/<id>) until
     SIGINT or SIGTERM; the bridge runs in its own environment, .venv-ros2 beside the
     checkout, made on first use (docs/ros2.md)."""
-    if not keys.ROBOT_ID_RE.match(robot):
+    if not keys.ROBOT_ID_RE.fullmatch(robot):
         raise ConfigError(f"--robot {robot!r}: lower-case letters, digits, _ and - only")
     python = prepare()
     if only_prepare:

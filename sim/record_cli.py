@@ -103,7 +103,7 @@ def record_command(
     from dms.operator_cli import absolute_key
     from sim.recording import McapRecorder, record_until
 
-    if not ROBOT_ID_RE.match(robot_id):
+    if not ROBOT_ID_RE.fullmatch(robot_id):
         raise SimError(f"--robot: {robot_id!r} does not match [a-z0-9_-]+")
     exprs = [absolute_key(robot_id, k) for k in only or ["**"]]
     out = out if out is not None else default_name(robot_id, datetime.now())
@@ -285,7 +285,7 @@ def record_play_command(
     if recording.truncated is not None:
         print(f"dms: {file}: truncated: {recording.truncated}", file=sys.stderr)
     robot = robot_id or recording.robot_id or "mini"
-    if not ROBOT_ID_RE.match(robot):
+    if not ROBOT_ID_RE.fullmatch(robot):
         raise SimError(f"--robot: {robot!r} does not match [a-z0-9_-]+")
     if not recording.messages:
         raise SimError(f"{file}: no message to play")

@@ -67,9 +67,15 @@ def api(handler: Handler) -> Callable[[Request], Awaitable[Response]]:
         try:
             return reply(await handler(request))
         except StudioError as error:
-            return reply({"error": str(error)}, error.status)
+            return reply({"error": one_line(str(error))}, error.status)
 
     return endpoint
+
+
+def one_line(message: str) -> str:
+    """A refusal on one line: YAML's and the loader's messages span several (a caret
+    under the spot), and a page or a script shows the first line of what it gets."""
+    return " | ".join(line.strip() for line in message.splitlines() if line.strip())
 
 
 async def body(request: Request) -> dict[str, Any]:
@@ -143,9 +149,10 @@ class Studio:
             doc = one_state(doc, state)
         if self.trial is not None:
             self.trial.stop()
-        self.trial = await run_in_threadpool(
-            Trial, self.folder, doc, self.robot_factory(0), int(data.get("seed") or 0)
-        )
+        seed = data.get("seed") or 0
+        if not isinstance(seed, int) or isinstance(seed, bool):
+            raise StudioError("seed: a whole number, or none")
+        self.trial = await run_in_threadpool(Trial, self.folder, doc, self.robot_factory(0), seed)
         return await run_in_threadpool(self.trial.step)
 
     def _trial(self) -> Trial:

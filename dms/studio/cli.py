@@ -135,6 +135,6 @@ def _connect(connect: list[str], zenoh_config: Path | None, robot: str) -> Daemo
     from dms.kernel.keys import ROBOT_ID_RE
     from dms.studio.link import DaemonLink
 
-    if not ROBOT_ID_RE.match(robot):
+    if not ROBOT_ID_RE.fullmatch(robot):
         raise ConfigError(f"--robot {robot!r}: lower-case letters, digits, _ and -")
     return DaemonLink(ZenohClient(robot, make_client_config(connect, zenoh_config)))

@@ -20,7 +20,7 @@ TLS_KEY_HELP = "The PEM private key of --tls-cert, without a passphrase."
 
 def check_robot_ids(robots: list[str]) -> list[str]:
     for robot in robots:
-        if not ROBOT_ID_RE.match(robot):
+        if not ROBOT_ID_RE.fullmatch(robot):
             raise ConfigError(f"--robot: {robot!r} does not match [a-z0-9_-]+")
     return robots
 

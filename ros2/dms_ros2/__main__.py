@@ -68,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
 
     full = sys.argv if argv is None else ["dms_ros2", *argv]
     args = parse(remove_ros_args(full)[1:])
-    if not topics.ROBOT_ID_RE.match(args.robot):
+    if not topics.ROBOT_ID_RE.fullmatch(args.robot):
         print(
             f"dms ros2: --robot {args.robot!r}: lower-case letters, digits, _ and -",
             file=sys.stderr,
