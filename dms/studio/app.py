@@ -2,7 +2,7 @@
 
 Every request passes the viewer's :class:`~dms.viewer.guard.HostGuard` (a foreign
 ``Host`` is 421, a write from a foreign ``Origin`` 403) and then the
-:class:`~dms.studio.auth.TokenGuard` (no token, 403). The API:
+:class:`~dms.viewer.auth.TokenGuard` (no token, 403; the URL with the token sets a cookie). The API:
 
 - ``GET /api/palette``: the blocks by category with their schemas;
 - ``GET /api/behaviors``: the folder and its behaviors; ``GET /api/behaviors/NAME``
@@ -38,13 +38,13 @@ from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
 from dms.kernel.body import NEUTRAL
-from dms.studio.auth import TokenGuard
 from dms.studio.errors import StudioError
 from dms.studio.folder import Folder
 from dms.studio.link import DaemonLink
 from dms.studio.palette import palette
 from dms.studio.rules import RulesFiles
 from dms.studio.trial import RobotFactory, Trial, one_state
+from dms.viewer.auth import TokenGuard
 from dms.viewer.guard import WILDCARDS, HostGuard, allowed_hosts
 
 DEFAULT_FRAMES = ["user", "face:<id>", "object:<name>"]
@@ -296,6 +296,6 @@ def create_app(
                 port=port,
                 any_address=host in WILDCARDS,
             ),
-            Middleware(TokenGuard, token=token),
+            Middleware(TokenGuard, token=token, page="studio", command="studio", port=port),
         ],
     )

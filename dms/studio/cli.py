@@ -91,9 +91,9 @@ def studio_command(
     """
     from activities.library import BEHAVIORS_DIR
     from dms.studio.app import Studio, create_app
-    from dms.studio.auth import new_token
     from dms.studio.folder import Folder
     from dms.studio.rules import rules_files
+    from dms.viewer.auth import new_token
     from dms.viewer.cli import bind, page_url
     from dms.viewer.server import serve
     from dms.viewer.tls import server_context

@@ -98,6 +98,13 @@ def test_a_foreign_host_a_missing_token_and_a_foreign_origin_are_refused(studio:
     assert status == 403
     status, _ = studio.request("GET", f"/?token={studio.token}", token=False)
     assert status == 200
+    # the cookie that visit set opens the page and its API without the token in the URL
+    # (the viewer's link to the studio works once the studio's URL was opened)
+    jar = {"Cookie": f"dms-studio-{studio.port}={studio.token}"}
+    assert studio.request("GET", "/", headers=jar, token=False)[0] == 200
+    assert studio.request("GET", "/api/behaviors", headers=jar, token=False)[0] == 200
+    wrong = {"Cookie": f"dms-viewer-{studio.port}={studio.token}"}
+    assert studio.request("GET", "/api/behaviors", headers=wrong, token=False)[0] == 403
     doc = {"name": "quiz", "outcomes": ["done"], "states": {}}
     origin = {"Origin": "http://evil.example"}
     status, text = studio.request("POST", "/api/save", {"doc": doc, "hash": None}, headers=origin)
