@@ -66,15 +66,19 @@ class TokenGuard:
         self.refused = refusal(command)
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http" or str(scope["path"]).startswith(PUBLIC_PREFIX):
-            await self.app(scope, receive, send)
+        kind = scope["type"]
+        if kind not in ("http", "websocket") or str(scope["path"]).startswith(PUBLIC_PREFIX):
+            await self.app(scope, receive, send)  # the server's lifespan; the static files
             return
         in_query = self._in_query(scope)
         if not (in_query or self._in_header_or_cookie(scope)):
+            if kind == "websocket":  # closed before it is accepted: the client sees a 403
+                await send({"type": "websocket.close", "code": 1008})
+                return
             response = PlainTextResponse(self.refused, 403)
             await response(scope, receive, send)
             return
-        if not in_query:
+        if not in_query or kind == "websocket":
             await self.app(scope, receive, send)
             return
         secure = "; Secure" if scope.get("scheme") == "https" else ""
