@@ -440,7 +440,7 @@ def robot_command(
     from dms.kernel.keys import ROBOT_ID_RE
     from sim.robot_node import RobotNode
 
-    if not ROBOT_ID_RE.match(robot_id):
+    if not ROBOT_ID_RE.fullmatch(robot_id):
         raise SimError(f"--robot-id: {robot_id!r} does not match [a-z0-9_-]+")
     endpoints = connect if connect or listen else [DEFAULT_ENDPOINT]
     with ZenohClient(robot_id, make_config(listen=listen or (), connect=endpoints or ())) as client:
