@@ -1,0 +1,259 @@
+"""From outside: ``dms reachy`` driving the maker's simulated Reachy Mini for a real daemon.
+
+One MuJoCo simulator (``reachy-mini-daemon --sim --headless --no-media`` through
+``dms_reachy.simulator``, which keeps it off the network) is shared by the module, with
+a daemon run with ``--robot zenoh`` and the bridge as a person starts it (``dms reachy``,
+its environment made as the docs say). What the robot does is read back through the
+SDK by ``dms_reachy.probe``, a plain client in the bridge's environment. Every wait is
+for a message, a token, a log line or the probe's answer, with a deadline.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import zenoh
+
+from dms.reachy_cli import prepare
+from tests.integration.harness import (
+    Collector,
+    DaemonProcess,
+    StderrLines,
+    client_session,
+    free_port,
+    put,
+    token_deleted,
+    wait_token,
+)
+
+pytestmark = pytest.mark.integration
+
+WAIT_S = 60.0
+"""The simulator starts in about 5 s; the margin is for a loaded CI machine."""
+HEAD_ORIGIN_Z_M = 0.177
+"""docs/reachy.md: the dms base frame's origin is this far below Reachy's world frame."""
+LINK = "ack_timeout_s = 3.0\noffline_after_unacked = 2\noffline_retry_max_s = 5.0\n"
+
+
+@pytest.fixture(scope="module")
+def bridge_python() -> Path:
+    """The bridge's environment, made as docs/reachy.md says (CI makes it first)."""
+    return prepare(echo=False)
+
+
+class Simulator:
+    """The maker's simulated Reachy Mini on a port of the test's own."""
+
+    def __init__(self, python: Path, port: int) -> None:
+        self.python, self.port = python, port
+        self.proc: subprocess.Popen[str] | None = None
+
+    def start(self) -> None:
+        self.proc = subprocess.Popen(
+            [str(self.python), "-m", "dms_reachy.simulator", "--port", str(self.port)],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        lines = StderrLines(self.proc)
+        lines.wait_for("Application startup complete", timeout=WAIT_S)
+
+    def kill(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait(20)
+
+
+class Probe:
+    """``python -m dms_reachy.probe``: one JSON line asked, one answered."""
+
+    def __init__(self, python: Path, port: int) -> None:
+        self.proc = subprocess.Popen(
+            [str(python), "-m", "dms_reachy.probe", "--port", str(port)],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+            text=True,
+        )
+        assert self.proc.stdout is not None
+        ready = json.loads(self.proc.stdout.readline() or "{}")
+        assert ready.get("ready"), ready
+
+    def ask(self, **order: Any) -> dict[str, Any]:
+        assert self.proc.stdin is not None and self.proc.stdout is not None
+        self.proc.stdin.write(json.dumps(order) + "\n")
+        self.proc.stdin.flush()
+        answer: dict[str, Any] = json.loads(self.proc.stdout.readline())
+        assert "error" not in answer, answer
+        return answer
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            assert self.proc.stdin is not None
+            self.proc.stdin.write('{"op": "quit"}\n')
+            self.proc.stdin.flush()
+            self.proc.wait(20)
+
+
+class Setup:
+    def __init__(
+        self,
+        session: zenoh.Session,
+        sim: Simulator,
+        probe: Probe,
+        bridge: subprocess.Popen[str],
+        bridge_log: StderrLines,
+    ) -> None:
+        self.session, self.sim, self.probe = session, sim, probe
+        self.bridge, self.bridge_log = bridge, bridge_log
+        self.commands = Collector(session, "robots/mini/robot/command")
+        self.feedback = Collector(session, "robots/mini/robot/feedback")
+        self.decisions = Collector(session, "robots/mini/dms/decision")
+        self.states = Collector(session, "robots/mini/dms/state")
+        self.errors = Collector(session, "robots/mini/dms/errors")
+        self.joints = Collector(session, "robots/mini/robot/joints")
+
+    def command(self, predicate: Any, start: int, timeout: float = 30.0) -> dict[str, Any]:
+        return self.commands.wait_for(predicate, timeout=timeout, start=start)
+
+    def status(self, command_id: str, status: str, timeout: float = 30.0) -> dict[str, Any]:
+        return self.feedback.wait_for(
+            lambda f: f["id"] == command_id and f["status"] == status, timeout=timeout
+        )
+
+    def request(self, action: str, activity: str | None = None) -> None:
+        put(self.session, "request", {"action": action, "activity": activity, "by": "test"})
+
+    def idle(self) -> None:
+        """Nobody in front, whatever runs cancelled: wait until the robot only waits."""
+        put(self.session, "perception/user", {"present": False})
+        self.request("cancel")
+        self.states.wait_for(
+            lambda s: s["activity"] is None or s["activity"]["name"] == "wait",
+            start=self.states.mark(),
+            timeout=30,
+        )
+
+
+@pytest.fixture(scope="module")
+def setup(bridge_python: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Setup]:
+    tmp = tmp_path_factory.mktemp("reachy")
+    sim = Simulator(bridge_python, free_port())
+    daemon = DaemonProcess(tmp, extra_config=LINK, extra_args=("--robot", "zenoh"))
+    session = client_session(daemon.port)
+    probe: Probe | None = None
+    bridge: subprocess.Popen[str] | None = None
+    try:
+        sim.start()
+        daemon.start(session)
+        argv = [sys.executable, "-m", "dms.cli", "reachy", "--connect"]
+        argv += [f"tcp/127.0.0.1:{daemon.port}", "--host", "127.0.0.1", "--port", str(sim.port)]
+        bridge = subprocess.Popen(
+            argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+        )
+        log = StderrLines(bridge)
+        wait_token(session, "robots/mini/alive/robot/feedback", timeout=WAIT_S)
+        probe = Probe(bridge_python, sim.port)
+        yield Setup(session, sim, probe, bridge, log)
+    finally:
+        if probe is not None:
+            probe.close()
+        if bridge is not None and bridge.poll() is None:
+            bridge.terminate()
+            bridge.wait(20)
+        daemon.kill()
+        sim.kill()
+        session.close()
+
+
+def test_an_activity_s_gesture_moves_the_simulated_head_and_antennas(setup: Setup) -> None:
+    start = setup.commands.mark()
+    setup.request("start", "presentation")  # it opens with a wave
+    wave = setup.command(lambda c: c["args"].get("name") == "wave", start)
+    setup.status(wave["id"], "started")
+    seen = setup.probe.ask(op="watch", seconds=2.0)
+    assert seen["high"]["left"] - seen["low"]["left"] > 0.4, seen  # the left antenna waves
+    assert seen["high"]["roll"] - seen["low"]["roll"] > 0.08, seen  # the head leans
+    setup.status(wave["id"], "done")
+    # the joints come from the simulated robot: hip, neck and head, no arms
+    joints = setup.joints.wait_for(lambda j: True, start=setup.joints.mark())
+    assert set(joints["positions"]) == {"hip", "neck", "head"}
+    setup.idle()
+
+
+def test_look_at_a_face_turns_the_head_toward_it(setup: Setup) -> None:
+    face = (0.6, 0.25, 0.30)  # the dms base frame: x forward, y left, z up from the table
+    user = {"present": True, "user_id": "ann", "ready": True}
+    user["face"] = {"position": dict(zip("xyz", face, strict=True)), "orientation": None}
+    put(setup.session, "perception/user", user)
+    start = setup.commands.mark()
+    setup.request("start", "quiz")  # it attends the person it plays with
+    aim = setup.command(
+        lambda c: c["channel"] == "aim" and c["action"] == "look_at" and c["args"].get("frame"),
+        start,
+    )
+    setup.status(aim["id"], "done")
+    pose = setup.probe.ask(op="measure")["pose"]
+    forward = [pose[0][0], pose[1][0], pose[2][0]]
+    target = [face[0] - pose[0][3], face[1] - pose[1][3], face[2] - HEAD_ORIGIN_Z_M - pose[2][3]]
+    cosine = sum(f * t for f, t in zip(forward, target, strict=True)) / math.dist(target, (0, 0, 0))
+    assert math.degrees(math.acos(min(1.0, cosine))) < 4.0, (
+        setup.bridge_log.text(),
+        forward,
+        target,
+        setup.commands.messages[start:],
+        setup.feedback.messages[-10:],
+    )
+    setup.idle()
+
+
+def test_the_robot_sleeps_with_the_sleep_activity_and_wakes_after(setup: Setup) -> None:
+    start = setup.commands.mark()
+    setup.request("start", "sleep")
+    yawn = setup.command(lambda c: c["args"].get("name") == "sleep_pose", start)
+    setup.status(yawn["id"], "done")
+    asleep = setup.probe.ask(op="measure")
+    # the SDK's sleep pose: antennas folded back (about 3 rad), head bowed
+    assert asleep["left"] > 2.5 and asleep["right"] < -2.5, asleep
+    mark = setup.bridge_log.mark()
+    setup.idle()
+    setup.bridge_log.wait_for("awake (wake_up)", start=mark, timeout=WAIT_S)
+    awake = setup.probe.ask(op="measure")
+    assert abs(awake["left"]) < 0.5 and abs(awake["right"]) < 0.5, awake
+    assert abs(awake["pitch"]) < 0.15, awake
+
+
+def test_reachy_gone_is_reported_and_the_bridge_reconnects_when_it_returns(setup: Setup) -> None:
+    with token_deleted(setup.session, "robots/mini/alive/robot/feedback", timeout=WAIT_S):
+        setup.sim.kill()
+    setup.bridge_log.wait_for("lost", timeout=WAIT_S)
+    # a command while Reachy is away: unanswered, the activity is told it failed, and the
+    # daemon marks the robot offline and says so
+    mark = setup.decisions.mark()
+    setup.request("start", "jokes")
+    failed = setup.decisions.wait_for(
+        lambda d: d["action"] == "fail" and d["activity"] == "jokes", start=mark, timeout=WAIT_S
+    )
+    assert failed["reason"] == "activity_error", failed
+    setup.states.wait_for(lambda s: s["robot_link"] == "offline", timeout=WAIT_S)
+    setup.errors.wait_for(lambda e: e["key"] == "robot" and "offline" in e["error"], timeout=WAIT_S)
+    # Reachy's daemon comes back: the bridge reaches it, the daemon takes the robot back
+    mark = setup.bridge_log.mark()
+    setup.sim.start()
+    setup.bridge_log.wait_for("reached", start=mark, timeout=WAIT_S)
+    wait_token(setup.session, "robots/mini/alive/robot/feedback", timeout=WAIT_S)
+    setup.states.wait_for(lambda s: s["robot_link"] == "ok", start=setup.states.mark(), timeout=30)
+    setup.errors.wait_for(lambda e: e["key"] == "robot" and "back online" in e["error"])
+    setup.probe.close()  # its connection went with the old simulator
+    setup.probe = Probe(setup.sim.python, setup.sim.port)
+    start = setup.commands.mark()
+    setup.request("start", "presentation")
+    wave = setup.command(lambda c: c["args"].get("name") == "wave", start, timeout=WAIT_S)
+    setup.status(wave["id"], "done")
