@@ -2,7 +2,9 @@
 
 For the tests and the benchmark: a plain SDK client, driven by JSON lines on stdin
 (``{"op": "measure"}``, ``{"op": "watch", "seconds": S}``, ``{"op": "quit"}``), answering
-one JSON line each on stdout. ``measure`` is the head pose (4x4), the body yaw and the
+one JSON line each on stdout (a watch with ``"announce": true`` first says when it
+began: ``{"watching": t}``). Times are ``time.monotonic()``, one clock for every process
+of the machine. ``measure`` is the head pose (4x4), the body yaw and the
 antennas; ``watch`` samples them at 50 Hz for ``S`` seconds and gives each axis's
 extremes and when each first left its start by 0.02 rad.
 """
@@ -76,6 +78,8 @@ def main() -> int:
             if order["op"] == "measure":
                 answer: dict[str, Any] = measure(reachy)
             elif order["op"] == "watch":
+                if order.get("announce"):  # for a caller that moves the robot once watched
+                    print(json.dumps({"watching": time.monotonic()}), flush=True)
                 answer = watch(reachy, float(order["seconds"]))
             else:
                 answer = {"error": f"unknown op {order['op']!r}"}

@@ -59,6 +59,17 @@ class Reachy:
     def __init__(self, host: str, port: int, media: bool) -> None:
         self.host, self.port, self.media = host, port, media
         self._mini: Any = None
+        self._adopted: Any = None
+        self._owned = True
+        """False for the dashboard's connection, which the dashboard closes."""
+
+    @classmethod
+    def adopt(cls, mini: Any, media: bool) -> Reachy:
+        """A connection the robot's dashboard made (an app's): used first, left to the
+        dashboard to close; after a loss the bridge connects again on its own."""
+        reachy = cls(str(mini.host), int(mini.port), media)
+        reachy._adopted = mini
+        return reachy
 
     @property
     def where(self) -> str:
@@ -70,6 +81,11 @@ class Reachy:
 
     def connect(self) -> None:
         """Connect (media as asked); raises RobotGone with the SDK's reason."""
+        if self._adopted is not None:
+            self._mini, self._adopted = self._adopted, None
+            self._owned = False
+            return
+        self._owned = True
         try:
             from reachy_mini import ReachyMini
 
@@ -88,7 +104,7 @@ class Reachy:
 
     def close(self) -> None:
         mini, self._mini = self._mini, None
-        if mini is None:
+        if mini is None or not self._owned:
             return
 
         def disconnect() -> None:

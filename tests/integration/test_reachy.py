@@ -94,6 +94,20 @@ class Probe:
         assert "error" not in answer, answer
         return answer
 
+    def watch_announced(self, seconds: float) -> float:
+        """Start a watch; returns once it samples, with when it began (monotonic)."""
+        assert self.proc.stdin is not None and self.proc.stdout is not None
+        self.proc.stdin.write(json.dumps({"op": "watch", "seconds": seconds, "announce": True}))
+        self.proc.stdin.write("\n")
+        self.proc.stdin.flush()
+        return float(json.loads(self.proc.stdout.readline())["watching"])
+
+    def result(self) -> dict[str, Any]:
+        """The answer of the watch started last."""
+        assert self.proc.stdout is not None
+        answer: dict[str, Any] = json.loads(self.proc.stdout.readline())
+        return answer
+
     def close(self) -> None:
         if self.proc.poll() is None:
             assert self.proc.stdin is not None
