@@ -33,7 +33,8 @@ from tests.integration.harness import (
     wait_token,
 )
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.integration, pytest.mark.timeout(300)]
+"""A simulator start and a reconnection under a loaded CI take longer than the 120 s default."""
 
 WAIT_S = 60.0
 """The simulator starts in about 5 s; the margin is for a loaded CI machine."""
