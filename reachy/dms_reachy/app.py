@@ -11,7 +11,9 @@ Zenoh. Settings come from the environment the robot's daemon was started with:
 - ``DMS_ROBOT``: the robot id (default ``mini``);
 - ``DMS_RUN``: optional, a command that runs the dms daemon itself (for example
   ``/opt/dms/.venv/bin/dms run --robot zenoh``): the app starts it first and stops it
-  when it stops, so the dashboard's start button starts dms whole.
+  when it stops, so the dashboard's start button starts dms whole;
+- ``DMS_REACHY_HOST``, ``DMS_REACHY_PORT``: the robot's daemon, when it does not serve
+  on ``localhost:8000`` (a simulator on a port of its own).
 """
 
 from __future__ import annotations
@@ -96,9 +98,20 @@ def _open(zenoh: Any, config: Any, stop_event: threading.Event) -> Any:
     return None
 
 
+def robot_daemon() -> dict[str, Any]:
+    """Where the robot's daemon is, when not where the dashboard's apps look for it
+    (``localhost:8000``): ``DMS_REACHY_HOST``, ``DMS_REACHY_PORT``."""
+    where: dict[str, Any] = {}
+    if os.environ.get("DMS_REACHY_HOST"):
+        where["host"] = os.environ["DMS_REACHY_HOST"]
+    if os.environ.get("DMS_REACHY_PORT"):
+        where["port"] = int(os.environ["DMS_REACHY_PORT"])
+    return where
+
+
 if __name__ == "__main__":
     app = DmsApp()
     try:
-        app.wrapped_run()
+        app.wrapped_run(**robot_daemon())
     except KeyboardInterrupt:
         app.stop()

@@ -12,8 +12,10 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import sys
+import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -40,6 +42,8 @@ WAIT_S = 60.0
 """The simulator starts in about 5 s; the margin is for a loaded CI machine."""
 HEAD_ORIGIN_Z_M = 0.177
 """docs/reachy.md: the dms base frame's origin is this far below Reachy's world frame."""
+APP_ROBOT = "app"
+"""The robot id the dashboard's app carries (beside the bridge's ``mini``)."""
 LINK = "ack_timeout_s = 3.0\noffline_after_unacked = 2\noffline_retry_max_s = 5.0\n"
 
 
@@ -52,8 +56,10 @@ def bridge_python() -> Path:
 class Simulator:
     """The maker's simulated Reachy Mini on a port of the test's own."""
 
-    def __init__(self, python: Path, port: int) -> None:
+    def __init__(self, python: Path, port: int, env: dict[str, str] | None = None) -> None:
         self.python, self.port = python, port
+        self.env = {**os.environ, **(env or {})}
+        """Its apps inherit it, as a robot's apps inherit its daemon's environment."""
         self.proc: subprocess.Popen[str] | None = None
 
     def start(self) -> None:
@@ -62,9 +68,10 @@ class Simulator:
             stdout=subprocess.DEVNULL,
             stderr=subprocess.PIPE,
             text=True,
+            env=self.env,
         )
-        lines = StderrLines(self.proc)
-        lines.wait_for("Application startup complete", timeout=WAIT_S)
+        self.log = StderrLines(self.proc)
+        self.log.wait_for("Application startup complete", timeout=WAIT_S)
 
     def kill(self) -> None:
         if self.proc is not None and self.proc.poll() is None:
@@ -160,8 +167,11 @@ class Setup:
 @pytest.fixture(scope="module")
 def setup(bridge_python: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Setup]:
     tmp = tmp_path_factory.mktemp("reachy")
-    sim = Simulator(bridge_python, free_port())
     daemon = DaemonProcess(tmp, extra_config=LINK, extra_args=("--robot", "zenoh"))
+    port = free_port()
+    app_env = {"DMS_CONNECT": f"tcp/127.0.0.1:{daemon.port}", "DMS_ROBOT": APP_ROBOT}
+    app_env.update(DMS_REACHY_HOST="127.0.0.1", DMS_REACHY_PORT=str(port))
+    sim = Simulator(bridge_python, port, app_env)
     session = client_session(daemon.port)
     probe: Probe | None = None
     bridge: subprocess.Popen[str] | None = None
@@ -243,6 +253,34 @@ def test_the_robot_sleeps_with_the_sleep_activity_and_wakes_after(setup: Setup) 
     awake = setup.probe.ask(op="measure")
     assert abs(awake["left"]) < 0.5 and abs(awake["right"]) < 0.5, awake
     assert abs(awake["pitch"]) < 0.15, awake
+
+
+def dashboard(sim: Simulator, path: str) -> Any:
+    """A POST to the robot's daemon's REST API, as its dashboard's buttons do."""
+    url = f"http://127.0.0.1:{sim.port}/api/apps/{path}"
+    with urllib.request.urlopen(urllib.request.Request(url, method="POST"), timeout=30) as r:
+        return json.loads(r.read() or b"null")
+
+
+def test_the_robot_s_dashboard_starts_and_stops_dms_as_an_app(setup: Setup) -> None:
+    """The installed bridge is listed as the app ``dms``; started from the dashboard it
+    carries a robot's commands (``DMS_ROBOT`` from the daemon's environment)."""
+    url = f"http://127.0.0.1:{setup.sim.port}/api/apps/list-available/installed"
+    with urllib.request.urlopen(url, timeout=30) as listing:
+        assert "dms" in [app["name"] for app in json.loads(listing.read())]
+    alive = f"robots/{APP_ROBOT}/alive/robot/feedback"
+    mark = setup.sim.log.mark()
+    dashboard(setup.sim, "start-app/dms")
+    try:
+        wait_token(setup.session, alive, timeout=WAIT_S)
+    except AssertionError:
+        raise AssertionError("\n".join(setup.sim.log.lines[mark:])) from None
+    feedback = Collector(setup.session, f"robots/{APP_ROBOT}/robot/feedback")
+    command = {"id": "app-1", "channel": "motion", "action": "gesture", "args": {"name": "nod"}}
+    put(setup.session, "robot/command", command, robot=APP_ROBOT)
+    feedback.wait_for(lambda f: f["id"] == "app-1" and f["status"] == "done", timeout=30)
+    with token_deleted(setup.session, alive, timeout=WAIT_S):
+        dashboard(setup.sim, "stop-current-app")
 
 
 def test_reachy_gone_is_reported_and_the_bridge_reconnects_when_it_returns(setup: Setup) -> None:
