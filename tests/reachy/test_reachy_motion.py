@@ -19,6 +19,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "reachy"))
 from dms_reachy import body, commands, gestures
 from dms_reachy.body import Posture
 from dms_reachy.motion import REST, Mixer
+from dms_reachy.speech import Voice, words_seconds
 
 from dms.kernel import repertoire
 from sim.robot import MOTION_SECONDS
@@ -148,3 +149,24 @@ def test_aim_arguments_are_read_within_the_contract_s_bounds() -> None:
     assert commands.position_of(args) is None
     assert commands.position_of({"position": {"x": 1, "y": 0, "z": 0.4}}) == (1.0, 0.0, 0.4)
     assert commands.seconds_of(1e9, 30.0, 3600.0) == 3600.0
+
+
+def test_espeak_ng_speaks_a_sentence_into_a_wav_file_of_its_length() -> None:
+    voice = Voice()
+    assert voice.available, "apt-get install espeak-ng (docs/reachy.md)"
+    try:
+        short, short_s = voice.synthesize("Hello.", 150, "en")
+        long, long_s = voice.synthesize("Let's play a quiz, my friend! " * 3, 150, "en")
+        assert short.read_bytes()[:4] == b"RIFF" and long.is_file()
+        assert 0.2 < short_s < long_s < 15.0
+        with pytest.raises(OSError, match="espeak-ng"):
+            voice.synthesize("Hello.", 150, "nolanguage")
+    finally:
+        voice.close()
+    assert not short.exists()  # its folder goes with it
+
+
+def test_printed_speech_is_timed_at_the_speaking_rate() -> None:
+    assert words_seconds("one two three", None) == pytest.approx(0.3 + 60 * 3 / 150)
+    assert words_seconds("one two three", 300) == pytest.approx(0.3 + 60 * 3 / 300)
+    assert words_seconds("one two three", 10_000) == words_seconds("one two three", None)
