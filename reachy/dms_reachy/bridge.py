@@ -91,7 +91,8 @@ class Bridge:
         """Aims and poses the plan has reached, until the measured head has too."""
         self._handles: list[Any] = []
         self._tokens: list[Any] = []
-        self.stats = {"commands": 0, "feedback": 0, "joints": 0, "reconnects": 0}
+        self._told_away = False
+        self.stats = {"commands": 0, "feedback": 0, "joints": 0, "connections": 0}
 
     def key(self, suffix: str) -> str:
         return f"robots/{self.robot_id}/{suffix}"
@@ -110,11 +111,11 @@ class Bridge:
         except commands.BadCommand as error:
             log(f"robot/command ignored: {error}")
             return
-        if self.connected and command.action != "interrupt":
-            # acknowledged here, not by the control thread, which a sleep or a wake
-            # holds for seconds: the daemon's ack timeout measures the robot's reach
-            self._feedback(command.id, "started")
-        with self._lock:
+        with self._lock:  # one lock with _lost: a command is acknowledged only while connected
+            if self.connected and command.action != "interrupt":
+                # acknowledged here, not by the control thread, which a sleep or a wake
+                # holds for seconds: the daemon's ack timeout measures the robot's reach
+                self._feedback(command.id, "started")
             self._queue.append(command)
             if len(self._queue) > QUEUE_MAX:
                 self._queue.popleft()
@@ -169,29 +170,34 @@ class Bridge:
             self.reachy.connect()
             measured = self.reachy.measure()
         except RobotGone as error:
-            if self.stats["reconnects"] == 0 or self.connected:
+            if not self._told_away:  # said once, not every second
                 log(f"Reachy Mini at {self.reachy.where} unreachable ({error}); retrying every 1 s")
+                self._told_away = True
             self.reachy.close()
-            self.stats["reconnects"] = max(self.stats["reconnects"], 1)
             return
-        self.connected = True
+        self._told_away = False
         with self._lock:
+            self.connected = True
             self.mixer.hold(measured.posture(), now)
             self._queue.clear()  # commands from while it was away were never acknowledged
         self._tokens = [
             self.session.liveliness().declare_token(self.key("alive/robot/feedback")),
             self.session.liveliness().declare_token(self.key("alive/robot/joints")),
         ]
-        self.stats["reconnects"] += 1
+        self.stats["connections"] += 1
         log(f"Reachy Mini at {self.reachy.where} reached: carrying robot {self.robot_id}")
 
     def _lost(self, reason: str) -> None:
         log(f"Reachy Mini at {self.reachy.where} lost ({reason}); retrying every 1 s")
-        self.connected = False
+        self._told_away = True
         self._withdraw_tokens()
         with self._lock:
+            self.connected = False
             running = self.mixer.running() + [command_id for _, command_id in self._timed]
             running += list(self._settling)
+            # acknowledged while it was there, not carried out: failed, not left waiting
+            running += [c.id for c in self._queue if c.action != "interrupt"]
+            self._queue.clear()
             self._timed.clear()
             self._settling.clear()
             self.mixer = Mixer()
