@@ -57,8 +57,9 @@ further; past this they would hit the head's shell in a fast gesture)."""
 
 HEAD_ORIGIN_Z_M = 0.177
 """Height above the table of Reachy Mini's world frame (the neutral head origin, where
-``look_at_world`` measures from): the dms base frame's origin is on the table, so a
-position from ``perception/user`` is lowered by this before Reachy looks at it."""
+``look_at_world`` measures from; the SDK's ``head_z_offset`` in its kinematics and its
+MuJoCo backend): the dms base frame's origin is on the table, so a position from
+``perception/user`` is lowered by this before Reachy looks at it."""
 
 
 @dataclass(frozen=True, slots=True)
