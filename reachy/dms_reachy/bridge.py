@@ -176,6 +176,10 @@ class Bridge:
             self.reachy.close()
             return
         self._told_away = False
+        # antennas folded past what the bridge uses: the robot is in the SDK's sleep pose
+        # (its daemon put it to sleep); it stays so until a gesture, an aim or a wake_up
+        folded = max(abs(measured.left), abs(measured.right)) > body.ANTENNA
+        self.asleep, self._slept = folded, False
         with self._lock:
             self.connected = True
             self.mixer.hold(measured.posture(), now)

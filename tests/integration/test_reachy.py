@@ -141,6 +141,12 @@ class Setup:
         self.states = Collector(session, "robots/mini/dms/state")
         self.errors = Collector(session, "robots/mini/dms/errors")
         self.joints = Collector(session, "robots/mini/robot/joints")
+        self.daemon_port = 0
+
+    def stop_bridge(self) -> None:
+        if self.bridge.poll() is None:
+            self.bridge.terminate()
+            self.bridge.wait(20)
 
     def command(self, predicate: Any, start: int, timeout: float = 30.0) -> dict[str, Any]:
         return self.commands.wait_for(predicate, timeout=timeout, start=start)
@@ -164,6 +170,14 @@ class Setup:
         )
 
 
+def start_bridge(daemon_port: int, sim_port: int) -> tuple[subprocess.Popen[str], StderrLines]:
+    """``dms reachy`` as a person starts it."""
+    argv = [sys.executable, "-m", "dms.cli", "reachy", "--connect"]
+    argv += [f"tcp/127.0.0.1:{daemon_port}", "--host", "127.0.0.1", "--port", str(sim_port)]
+    bridge = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    return bridge, StderrLines(bridge)
+
+
 @pytest.fixture(scope="module")
 def setup(bridge_python: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Setup]:
     tmp = tmp_path_factory.mktemp("reachy")
@@ -173,26 +187,19 @@ def setup(bridge_python: Path, tmp_path_factory: pytest.TempPathFactory) -> Iter
     app_env.update(DMS_REACHY_HOST="127.0.0.1", DMS_REACHY_PORT=str(port))
     sim = Simulator(bridge_python, port, app_env)
     session = client_session(daemon.port)
-    probe: Probe | None = None
-    bridge: subprocess.Popen[str] | None = None
+    made: Setup | None = None
     try:
         sim.start()
         daemon.start(session)
-        argv = [sys.executable, "-m", "dms.cli", "reachy", "--connect"]
-        argv += [f"tcp/127.0.0.1:{daemon.port}", "--host", "127.0.0.1", "--port", str(sim.port)]
-        bridge = subprocess.Popen(
-            argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
-        )
-        log = StderrLines(bridge)
+        bridge, log = start_bridge(daemon.port, sim.port)
+        made = Setup(session, sim, Probe(bridge_python, sim.port), bridge, log)
         wait_token(session, "robots/mini/alive/robot/feedback", timeout=WAIT_S)
-        probe = Probe(bridge_python, sim.port)
-        yield Setup(session, sim, probe, bridge, log)
+        made.daemon_port = daemon.port
+        yield made
     finally:
-        if probe is not None:
-            probe.close()
-        if bridge is not None and bridge.poll() is None:
-            bridge.terminate()
-            bridge.wait(20)
+        if made is not None:
+            made.probe.close()
+            made.stop_bridge()
         daemon.kill()
         sim.kill()
         session.close()
@@ -247,6 +254,15 @@ def test_the_robot_sleeps_with_the_sleep_activity_and_wakes_after(setup: Setup) 
     asleep = setup.probe.ask(op="measure")
     # the SDK's sleep pose: antennas folded back (about 3 rad), head bowed
     assert asleep["left"] > 2.5 and asleep["right"] < -2.5, asleep
+    # a bridge started while the robot sleeps leaves it asleep (its joints flowing)
+    with token_deleted(setup.session, "robots/mini/alive/robot/feedback", timeout=WAIT_S):
+        setup.stop_bridge()
+    setup.bridge, setup.bridge_log = start_bridge(setup.daemon_port, setup.sim.port)
+    wait_token(setup.session, "robots/mini/alive/robot/feedback", timeout=WAIT_S)
+    mark = setup.joints.mark()
+    setup.joints.wait_count(mark + 10, timeout=WAIT_S)  # a second of its control loop
+    still = setup.probe.ask(op="measure")
+    assert still["left"] > 2.5 and still["right"] < -2.5, still
     mark = setup.bridge_log.mark()
     setup.idle()
     setup.bridge_log.wait_for("awake (wake_up)", start=mark, timeout=WAIT_S)
