@@ -44,8 +44,12 @@ RETRY_S = 1.0
 QUEUE_MAX = 256
 """Commands waiting for the control thread; past it the oldest is dropped (and said)."""
 LONGEST_MEDIA_S = 3600.0
+LONGEST_GESTURE_S = 60.0
+"""A gesture's ``duration_s`` past this (or not a finite number) is not taken."""
 DEFAULT_MEDIA_S = 30.0
 SLEEP_ACTIVITY = "sleep"
+UNKNOWN = "?"
+"""The daemon's activity before a state has come (never an activity's name)."""
 SETTLE_S = 1.5
 """The longest an aim waits for the measured head to reach its target (a head held back
 by a hand, or by the daemon's own limits, is done after this all the same)."""
@@ -85,7 +89,7 @@ class Bridge:
         self._lock = threading.Lock()
         self._queue: deque[Command] = deque()
         self._dropped = 0
-        self._activity: str | None = None
+        self._activity: str | None = UNKNOWN
         self._timed: list[tuple[float, str]] = []
         self._settling: dict[str, tuple[body.Posture, float]] = {}
         """Aims and poses the plan has reached, until the measured head has too."""
@@ -179,8 +183,9 @@ class Bridge:
         # antennas folded past what the bridge uses: the robot is in the SDK's sleep pose
         # (its daemon put it to sleep); it stays so until a gesture, an aim or a wake_up
         folded = max(abs(measured.left), abs(measured.right)) > body.ANTENNA
-        self.asleep, self._slept = folded, False
+        self.asleep = self._slept = folded
         with self._lock:
+            self._activity = UNKNOWN  # until the daemon's next state says
             self.connected = True
             self.mixer.hold(measured.posture(), now)
             self._queue.clear()  # commands from while it was away were never acknowledged
@@ -233,10 +238,16 @@ class Bridge:
             log(f"robot/command: {dropped} commands dropped (more than {QUEUE_MAX} waiting)")
         for command in waiting:
             self.stats["commands"] += 1
-            self._carry_out(command, now)
+            try:
+                self._carry_out(command, now)
+            except RobotGone:
+                raise
+            except Exception as error:  # a fault in one command fails it, not the bridge
+                log(f"{command.channel} {command.action} {command.id}: {error!r}")
+                self._feedback(command.id, "failed", f"the bridge failed: {error}"[:500])
         if self.asleep and activity == SLEEP_ACTIVITY:
             self._slept = True
-        elif self.asleep and self._slept and not waiting:
+        elif self.asleep and self._slept and activity is not UNKNOWN and not waiting:
             self._wake(self.clock())  # the sleep activity ended: the robot wakes too
         with self._lock:
             stance_command, target = self.mixer.stance_command, self.mixer.target
@@ -317,8 +328,8 @@ class Bridge:
         if self.asleep:
             self._wake(now)
             now = self.clock()
-        seconds = command.args.get("duration_s")
-        timeline = gestures.scaled(keyframes, seconds if isinstance(seconds, int | float) else None)
+        seconds = commands.seconds_of(command.args.get("duration_s"), 0.0, LONGEST_GESTURE_S)
+        timeline = gestures.scaled(keyframes, seconds or None)
         with self._lock:
             replaced = self.mixer.play(command.id, timeline, now)
         if replaced is not None:

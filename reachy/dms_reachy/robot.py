@@ -139,6 +139,11 @@ class Reachy:
         )
 
     def measure(self) -> Measured:
+        """The measured joints and head, from the SDK's latest state. Raises RobotGone
+        when that state has stopped coming: the SDK keeps the last one, so a robot
+        asleep (sent nothing) would otherwise look present after its daemon went."""
+        if self._mini is not None and not getattr(self._mini.client, "_is_alive", True):
+            raise RobotGone("no state from the robot's daemon for a second")
         joints, antennas = self._call("get_current_joint_positions")
         matrix = self._call("get_current_head_pose")
         roll, pitch, yaw = head_angles(matrix)

@@ -54,13 +54,19 @@ class Voice:
         if isinstance(language, str) and language.replace("-", "").isalnum():
             argv += ["-v", language[:16]]
         argv += ["--", text[:MAX_CHARS]]
-        done = subprocess.run(
-            argv, capture_output=True, text=True, timeout=SYNTH_TIMEOUT_S, check=False
-        )
+        try:
+            done = subprocess.run(
+                argv, capture_output=True, text=True, timeout=SYNTH_TIMEOUT_S, check=False
+            )
+        except subprocess.TimeoutExpired:
+            raise OSError(f"espeak-ng took more than {SYNTH_TIMEOUT_S:.0f} s") from None
         if done.returncode != 0:
             raise OSError(f"espeak-ng: {done.stderr.strip()[:200] or done.returncode}")
-        with wave.open(str(path), "rb") as sound:
-            seconds = sound.getnframes() / float(sound.getframerate() or 1)
+        try:
+            with wave.open(str(path), "rb") as sound:
+                seconds = sound.getnframes() / float(sound.getframerate() or 1)
+        except (wave.Error, EOFError) as error:
+            raise OSError(f"espeak-ng wrote no readable WAV ({error})") from None
         return path, seconds
 
     def close(self) -> None:

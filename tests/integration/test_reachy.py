@@ -220,6 +220,23 @@ def test_an_activity_s_gesture_moves_the_simulated_head_and_antennas(setup: Setu
     setup.idle()
 
 
+def test_a_command_it_cannot_read_is_dropped_and_the_next_one_carried_out(setup: Setup) -> None:
+    mark = setup.bridge_log.mark()
+    put(setup.session, "robot/command", b"not json")
+    setup.bridge_log.wait_for("robot/command ignored: not JSON", start=mark)
+    # a duration that is no finite number: the gesture keeps its own (1.5 s)
+    nod = b'{"id": "nod-1", "channel": "motion", "action": "gesture",'
+    nod += b' "args": {"name": "nod", "duration_s": Infinity}}'
+    put(setup.session, "robot/command", nod)
+    started = setup.status("nod-1", "started")
+    done = setup.status("nod-1", "done")
+    assert started and done
+    odd = {"id": "odd-1", "channel": "motion", "action": "gesture", "args": {"name": "moonwalk"}}
+    put(setup.session, "robot/command", odd)
+    failed = setup.status("odd-1", "failed")
+    assert failed["detail"] == "unknown gesture 'moonwalk'"
+
+
 def test_look_at_a_face_turns_the_head_toward_it(setup: Setup) -> None:
     face = (0.6, 0.25, 0.30)  # the dms base frame: x forward, y left, z up from the table
     user = {"present": True, "user_id": "ann", "ready": True}
