@@ -34,6 +34,7 @@ from tests.integration.harness import (
     token_deleted,
     wait_token,
 )
+from tests.integration.test_ros2 import inet_sockets, off_loopback
 
 pytestmark = [pytest.mark.integration, pytest.mark.timeout(300)]
 """A simulator start and a reconnection under a loaded CI take longer than the 120 s default."""
@@ -218,6 +219,17 @@ def test_an_activity_s_gesture_moves_the_simulated_head_and_antennas(setup: Setu
     joints = setup.joints.wait_for(lambda j: True, start=setup.joints.mark())
     assert set(joints["positions"]) == {"hip", "neck", "head"}
     setup.idle()
+
+
+def test_the_simulator_the_bridge_and_the_probe_keep_to_loopback(setup: Setup) -> None:
+    """No mDNS advertisement, no telemetry, no dataset check: every IP socket of the
+    three processes is on loopback while the robot moves."""
+    setup.joints.wait_count(setup.joints.mark() + 3, timeout=WAIT_S)
+    for proc in (setup.sim.proc, setup.bridge, setup.probe.proc):
+        assert proc is not None
+        sockets = inet_sockets(proc.pid)  # `dms reachy` execs: its pid is the bridge's
+        assert any(protocol.startswith("tcp") for protocol, *_ in sockets), sockets
+        assert off_loopback(sockets) == [], sockets
 
 
 def test_a_command_it_cannot_read_is_dropped_and_the_next_one_carried_out(setup: Setup) -> None:
