@@ -27,9 +27,12 @@ CHECKOUT = Path(__file__).resolve().parents[1]
 SOURCE = CHECKOUT / "reachy"
 VENV = CHECKOUT / ".venv-reachy"
 STAMP_NAME = ".installed-stamp"
-SYSTEM_PACKAGES = "libcairo2-dev libgirepository1.0-dev gir1.2-gstreamer-1.0 espeak-ng"
+SYSTEM_PACKAGES = (
+    "libcairo2-dev libgirepository1.0-dev gir1.2-gstreamer-1.0 gir1.2-gst-plugins-base-1.0"
+    " espeak-ng"
+)
 """Debian's packages the SDK needs (PyGObject builds against the first two, the SDK's
-daemon loads GStreamer's bindings) and the voice the bridge speaks with."""
+daemon loads GStreamer's bindings, Gst, GstApp and GstPbutils) and the bridge's voice."""
 
 
 def bridge_python(venv: Path = VENV) -> Path:
