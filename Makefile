@@ -22,12 +22,16 @@ run: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
-## lint: ruff, mypy and the import floors (docs/architecture.md)
+## lint: ruff, mypy and the import floors (docs/architecture.md); the Reachy Mini bridge's
+## types against its own environment
 lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy dms managers activities motivation memory agenda sim
 	$(BIN)/lint-imports
+	@if [ -x .venv-reachy/bin/python ]; then \
+	  $(BIN)/mypy --config-file reachy/pyproject.toml --python-executable .venv-reachy/bin/python reachy/dms_reachy; \
+	else echo "lint: no .venv-reachy (dms reachy --prepare): the Reachy Mini bridge is not type-checked" >&2; fi
 
 ## bench: every benchmark, JSON on stdout (stops at the first that fails)
 bench: $(STAMP)

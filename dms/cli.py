@@ -29,6 +29,7 @@ from dms.fleet_cli import router as router_command
 from dms.foxglove_cli import foxglove as foxglove_command
 from dms.kernel.errors import DmsError
 from dms.operator_cli import echo_command, request_command, state_command, topics_command
+from dms.reachy_cli import reachy as reachy_command
 from dms.ros2_cli import ros2 as ros2_command
 from dms.studio.cli import studio_command
 from dms.studio.cli import use_robot as use_studio_robot
@@ -308,6 +309,7 @@ SUB_APPS = (
 app.command("router")(router_command)
 app.command("foxglove")(foxglove_command)
 app.command("ros2")(ros2_command)
+app.command("reachy")(reachy_command)
 app.command("view")(view_command)
 app.command("studio")(studio_command)
 use_studio_robot(_simulated_robot)  # the studio's trials drive the simulated Mini
