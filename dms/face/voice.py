@@ -23,6 +23,12 @@ RATE = 16_000
 MAX_SECONDS = 20.0
 MAX_BYTES = int(MAX_SECONDS * 48_000 * 2 * 2) + 1024
 """The largest WAV taken: 20 s of 48 kHz 16-bit stereo and a header."""
+SPEECH_RMS = 300.0
+"""A 20 ms frame louder than this (about -40 dBFS) may hold speech; a quiet room's
+microphone stays under it."""
+SPEECH_MIN_S = 0.15
+"""A recording with less sound than this holds no words: nothing is decoded (the
+recogniser would make words out of silence)."""
 FILLERS = frozenset({"<s>", "</s>", "<sil>", "[NOISE]", "[SPEECH]", "[BREATH]", "[COUGH]"})
 
 
@@ -63,10 +69,24 @@ def read_wav(data: bytes) -> np.ndarray[Any, np.dtype[np.int16]]:
     samples = samples.reshape(-1, channels).mean(axis=1)
     if len(samples) > MAX_SECONDS * rate:
         raise VoiceError(f"the recording is longer than {MAX_SECONDS:g} s")
-    if rate != RATE and len(samples):
+    if rate % RATE == 0 and rate > RATE:  # 32 or 48 kHz: the mean of each group of samples
+        factor = rate // RATE  # (a low-pass filter before dropping them, against aliasing)
+        samples = samples[: len(samples) - len(samples) % factor].reshape(-1, factor).mean(axis=1)
+    elif rate != RATE and len(samples):
         count = int(len(samples) * RATE / rate)
         samples = np.interp(np.arange(count) * rate / RATE, np.arange(len(samples)), samples)
     return np.asarray(np.clip(samples, -32768, 32767), dtype=np.int16)
+
+
+def has_speech(samples: np.ndarray[Any, np.dtype[np.int16]]) -> bool:
+    """Whether at least :data:`SPEECH_MIN_S` of 20 ms frames are louder than silence."""
+    frame = RATE // 50
+    count = len(samples) // frame
+    if count == 0:
+        return False
+    frames = samples[: count * frame].astype(np.float64).reshape(count, frame)
+    loud = np.sqrt((frames**2).mean(axis=1)) > SPEECH_RMS
+    return bool(loud.sum() * 0.02 >= SPEECH_MIN_S)
 
 
 class Transcriber:
@@ -80,6 +100,8 @@ class Transcriber:
         """The words in one WAV recording; empty text when nothing was recognised.
         Raises VoiceError for a file it cannot read."""
         samples = read_wav(data)
+        if not has_speech(samples):
+            return Heard("", 0.0)
         pad = np.zeros(RATE // 4, dtype=np.int16)  # silence around: the model expects it
         raw = np.concatenate([pad, samples, pad]).tobytes()
         with self._lock:

@@ -336,22 +336,25 @@ function presence(data) {
 }
 
 // ---------------------------------------------------------------- push-to-talk
-// The microphone is recorded at 16 kHz while the button is held (or from one tap to the
-// next) and sent as one WAV; the server transcribes it on this machine.
+// The microphone is recorded while the button is held (or from one tap to the next) and
+// sent as one WAV; the server transcribes it on this machine.
 
 const talk = { stream: null, context: null, node: null, chunks: [], started: 0, pressed: 0, stopping: false };
 async function startTalking() {
   if (talk.node || talk.starting) return;
   talk.starting = true;
   try {
-    talk.stream = talk.stream || await navigator.mediaDevices.getUserMedia({ audio: true });
+    talk.stream = talk.stream || await navigator.mediaDevices.getUserMedia({
+      // the recogniser wants the voice as it is: no echo cancelling, denoising or gain riding
+      audio: { echoCancellation: false, noiseSuppression: false, autoGainControl: false },
+    });
   } catch (error) {
     heard(`The microphone is not available (${error.message}).`);
     return;
   } finally {
     talk.starting = false;
   }
-  talk.context = new AudioContext({ sampleRate: 16000 });
+  talk.context = new AudioContext(); // the device's own rate: the server resamples it well
   await talk.context.audioWorklet.addModule("/static/recorder.js");
   const source = talk.context.createMediaStreamSource(talk.stream);
   talk.node = new AudioWorkletNode(talk.context, "recorder");
