@@ -411,7 +411,8 @@ function heard(text) { $("heard").textContent = text; }
 // ---------------------------------------------------------------- events from the daemon
 
 function apply(name, data) {
-  if (name !== "snapshot") face.log.push({ t: performance.now(), kind: name, text: data.text || data.action || "" });
+  const text = name === "decision" ? `${data.action} ${data.activity}` : data.text || "";
+  face.log.push({ t: performance.now(), kind: name, text });
   switch (name) {
     case "say": say(data); break;
     case "interrupt": interrupt(data.target); break;
