@@ -7,6 +7,8 @@ The helpers here (:func:`running_face`) also serve the browser's tests.
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 import urllib.error
 import urllib.request
 from collections.abc import Iterator
@@ -187,3 +189,26 @@ def test_a_body_over_the_bound_is_refused(face: Face) -> None:
     status, reply = face.call("/api/say", b'{"text": "' + b"a" * 20_000 + b'"}')
     assert status == 413, reply
     assert face.call("/api/snapshot")[0] == 200  # and the face goes on
+
+
+@pytest.mark.parametrize(
+    ("args", "named"),
+    [
+        (["--robot", "BAD"], "--robot"),
+        (["--language", "e!"], "--language"),
+        (["--host", "10.1.2.3"], "--tls-cert"),
+        (["--zenoh-config", "/nonexistent/face.json5"], "--zenoh-config"),
+        (["--tls-cert", "/nonexistent/cert.pem"], "--tls-key"),
+    ],
+)
+def test_a_bad_flag_is_one_line_before_anything_is_served(args: list[str], named: str) -> None:
+    done = subprocess.run(
+        [sys.executable, "-m", "dms.cli", "face", *args, "--port", "0"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 1, done
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("dms: ") and named in lines[0], done.stderr
+    assert "face on" not in done.stderr
