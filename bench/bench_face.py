@@ -11,7 +11,8 @@ play bingo" (espeak-ng). A person arrives; then, each time the menu is on the ta
 - ``speech``: the end of push-to-talk (the tap that stops the recording) to the ``start``
   decision of bingo arriving on the page: the recording sent, transcribed by pocketsphinx,
   published as ``perception/speech`` and decided on. ``transcribe_ms`` is the server's
-  share (the POST's round trip).
+  share (the POST's round trip). An utterance heard without "bingo", or under the daemon's
+  confidence threshold, is counted as ``misheard`` and decides nothing.
 
 Between trials a ``cancel`` request from another process brings the menu back. Prints one
 JSON object with p50 and p95 of each, in milliseconds.
@@ -43,6 +44,8 @@ from tests.integration.viewer_harness import CHROMIUM, CHROMIUM_ARGS
 TAPS = 20
 UTTERANCES = 10
 WAIT_MS = 60_000
+MIN_CONFIDENCE = 0.5
+"""The daemon's default ``min_speech_confidence``: an utterance under it is not understood."""
 TAPPED = "jokes"
 """The activity tapped: it has no closing sentence, so its cancel leaves the voice free."""
 
@@ -90,7 +93,11 @@ def tap_once(face: Face, page: Any, decisions: Collector) -> float:
     return float(answered["t"] - tapped["t"])
 
 
-def speak_once(face: Face, page: Any, decisions: Collector, seconds: float) -> tuple[float, float]:
+def speak_once(
+    face: Face, page: Any, decisions: Collector, seconds: float
+) -> tuple[float | None, float]:
+    """Push-to-talk once: speech end to the decision (None when misheard), and the
+    transcription's round trip."""
     page.click("#talk-button")
     page.wait_for_selector("#talk-button.recording")
     page.wait_for_function(f"window.face.recorded > {seconds + 0.5}", timeout=WAIT_MS)
@@ -98,8 +105,10 @@ def speak_once(face: Face, page: Any, decisions: Collector, seconds: float) -> t
     with page.expect_response(lambda r: "/api/voice" in r.url) as posted:
         began = time.perf_counter()
         page.click("#talk-button")
-    posted.value.finished()
+    heard = posted.value.json()
     transcribe_ms = (time.perf_counter() - began) * 1000
+    if "bingo" not in heard.get("text", "") or heard.get("confidence", 0) < MIN_CONFIDENCE:
+        return None, transcribe_ms  # misheard: the daemon decides nothing
     ended = after(page, start, "speech-end")
     decided = after(page, start, "decision", "start bingo")
     menu_again(face, page, decisions, "bingo", since)
@@ -117,6 +126,7 @@ def main() -> None:
     tap_ms: list[float] = []
     speech_ms: list[float] = []
     transcribe_ms: list[float] = []
+    misheard = 0
     with tempfile.TemporaryDirectory() as tmp, running_face(Path(tmp)) as face:
         wav, seconds = spoken(Path(tmp), PHRASE) if voice is None else (None, 0.0)
         microphone = (
@@ -147,18 +157,23 @@ def main() -> None:
                     tap_ms.append(tap_once(face, page, decisions))
                 for _ in range(utterances if wav else 0):
                     decided, transcribed = speak_once(face, page, decisions, seconds)
-                    speech_ms.append(decided)
                     transcribe_ms.append(transcribed)
+                    if decided is None:
+                        misheard += 1
+                    else:
+                        speech_ms.append(decided)
             finally:
                 browser.close()
     result: dict[str, Any] = {
         "quick": quick,
         "taps": len(tap_ms),
         "tap_to_answer_ms": percentiles(tap_ms),
-        "utterances": len(speech_ms),
+        "utterances": len(transcribe_ms),
+        "misheard": misheard,
     }
     if speech_ms:
         result["speech_end_to_decision_ms"] = percentiles(speech_ms)
+    if transcribe_ms:
         result["transcribe_ms"] = percentiles(transcribe_ms)
     else:
         result["voice"] = f"not measured: {voice}"

@@ -29,6 +29,8 @@ microphone stays under it."""
 SPEECH_MIN_S = 0.15
 """A recording with less sound than this holds no words: nothing is decoded (the
 recogniser would make words out of silence)."""
+MARGIN_S = 0.3
+"""Kept before the first and after the last sound: the words' soft edges."""
 FILLERS = frozenset({"<s>", "</s>", "<sil>", "[NOISE]", "[SPEECH]", "[BREATH]", "[COUGH]"})
 
 
@@ -78,15 +80,24 @@ def read_wav(data: bytes) -> np.ndarray[Any, np.dtype[np.int16]]:
     return np.asarray(np.clip(samples, -32768, 32767), dtype=np.int16)
 
 
-def has_speech(samples: np.ndarray[Any, np.dtype[np.int16]]) -> bool:
-    """Whether at least :data:`SPEECH_MIN_S` of 20 ms frames are louder than silence."""
+def voiced(
+    samples: np.ndarray[Any, np.dtype[np.int16]],
+) -> np.ndarray[Any, np.dtype[np.int16]] | None:
+    """The part of the recording with sound in it, with :data:`MARGIN_S` of what is around
+    it (decoding takes time in proportion to the audio: the silence before and after the
+    words is left out); None when less than :data:`SPEECH_MIN_S` of it is louder than
+    silence."""
     frame = RATE // 50
     count = len(samples) // frame
     if count == 0:
-        return False
+        return None
     frames = samples[: count * frame].astype(np.float64).reshape(count, frame)
-    loud = np.sqrt((frames**2).mean(axis=1)) > SPEECH_RMS
-    return bool(loud.sum() * 0.02 >= SPEECH_MIN_S)
+    loud = np.flatnonzero(np.sqrt((frames**2).mean(axis=1)) > SPEECH_RMS)
+    if len(loud) * frame < SPEECH_MIN_S * RATE:
+        return None
+    margin = int(MARGIN_S * RATE)
+    first, last = loud[0] * frame - margin, (loud[-1] + 1) * frame + margin
+    return samples[max(0, first) : last]
 
 
 class Transcriber:
@@ -99,8 +110,8 @@ class Transcriber:
     def transcribe(self, data: bytes) -> Heard:
         """The words in one WAV recording; empty text when nothing was recognised.
         Raises VoiceError for a file it cannot read."""
-        samples = read_wav(data)
-        if not has_speech(samples):
+        samples = voiced(read_wav(data))
+        if samples is None:
             return Heard("", 0.0)
         pad = np.zeros(RATE // 4, dtype=np.int16)  # silence around: the model expects it
         raw = np.concatenate([pad, samples, pad]).tobytes()

@@ -344,7 +344,7 @@ async function startTalking() {
   if (talk.node || talk.starting) return;
   talk.starting = true;
   try {
-    talk.stream = talk.stream || await navigator.mediaDevices.getUserMedia({
+    talk.stream = await navigator.mediaDevices.getUserMedia({
       // the recogniser wants the voice as it is: no echo cancelling, denoising or gain riding
       audio: { echoCancellation: false, noiseSuppression: false, autoGainControl: false },
     });
@@ -394,6 +394,8 @@ async function stopTalking() {
   talk.node.port.onmessage = null;
   talk.node.disconnect();
   talk.node = null;
+  for (const track of talk.stream.getTracks()) track.stop(); // the microphone is off between turns
+  talk.stream = null;
   await talk.context.close();
   $("talk-button").classList.remove("recording");
   $("talk-label").textContent = "Talk";
