@@ -158,15 +158,11 @@ class FaceFeed:
     def _on_screen(self, ident: str, args: dict[str, Any]) -> None:
         raw = args.get("choices")
         choices = [
-            _text(choice, MAX_CHOICE_TEXT)
+            _text(str(choice), MAX_CHOICE_TEXT)  # a number is offered as its text
             for choice in (raw if isinstance(raw, list) else [])[:MAX_CHOICES]
             if isinstance(choice, str | int | float) and not isinstance(choice, bool)
         ]
-        screen: dict[str, Any] = {
-            "id": ident,
-            "text": _text(args.get("text")),
-            "choices": [str(c) if not isinstance(c, str) else c for c in choices],
-        }
+        screen: dict[str, Any] = {"id": ident, "text": _text(args.get("text")), "choices": choices}
         for name in ("face", "image"):
             if isinstance(args.get(name), str):
                 screen[name] = _text(args[name], 200)
