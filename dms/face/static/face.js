@@ -68,10 +68,10 @@ function look(gaze) {
   // a positive neck or hip turn looks to the robot's left (the viewer's right); a positive
   // head tilt looks down
   const pan = (gaze.neck || 0) + 0.5 * (gaze.hip || 0);
-  const x = Math.max(-1, Math.min(1, pan / 1.0)) * 28;
-  const y = Math.max(-1, Math.min(1, (gaze.head || 0) / 0.45)) * 22;
-  for (const pupil of document.querySelectorAll(".pupil")) {
-    pupil.style.transform = `translate(${x}%, ${y}%)`;
+  const x = Math.max(-1, Math.min(1, pan / 1.0)) * 45;
+  const y = Math.max(-1, Math.min(1, (gaze.head || 0) / 0.45)) * 30;
+  for (const eye of document.querySelectorAll(".eye")) {
+    eye.style.transform = `translate(${x}%, ${y}%)`;
   }
 }
 function cheeks(led) {
@@ -253,7 +253,7 @@ function openKeyboard(prompt, onSend) {
     keys.append(el("button", { type: "button", on: () => { input.value += input.value ? letter.toLowerCase() : letter; } }, letter));
   }
   keys.append(el("button", { type: "button", class: "wide", on: () => { input.value += " "; } }, "space"));
-  keys.append(el("button", { type: "button", class: "wide", on: () => { input.value = input.value.slice(0, -1); } }, "⌫ delete"));
+  keys.append(el("button", { type: "button", class: "wide", on: () => { input.value = input.value.slice(0, -1); } }, "⌫"));
   form.querySelector(".cancel").addEventListener("click", () => { closeKeyboard(); restore(); });
   form.addEventListener("submit", (event) => {
     event.preventDefault();
