@@ -55,7 +55,7 @@ class Face:
         token: bool = True,
     ) -> tuple[int, Any]:
         """One request to the face (POST when there is a body): its status and JSON."""
-        query = f"?token={self.token}" if token else ""
+        query = ("&" if "?" in path else "?") + f"token={self.token}" if token else ""
         data = json.dumps(body).encode() if isinstance(body, dict) else body
         request = urllib.request.Request(
             f"{self.base}{path}{query}", data=data, headers=headers or {}
