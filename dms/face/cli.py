@@ -29,9 +29,7 @@ def face_command(
     ] = None,
     zenoh_config: Annotated[
         Path | None,
-        typer.Option(
-            "--zenoh-config", help="Zenoh JSON5 file (a secured bus: the perception role's)."
-        ),
+        typer.Option("--zenoh-config", help="Zenoh JSON5 configuration file."),
     ] = None,
     robot: Annotated[
         str, typer.Option("--robot", "--robot-id", help="The daemon's robot id.")
