@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import threading
 import urllib.error
 import urllib.request
 from collections.abc import Iterator
@@ -21,8 +22,14 @@ from urllib.parse import parse_qs, urlsplit
 import pytest
 import zenoh
 
-from tests.integration.harness import Collector, DaemonProcess, client_session
-from tests.integration.viewer_harness import page_server
+from tests.integration.harness import (
+    READY_TIMEOUT_S,
+    Collector,
+    DaemonProcess,
+    client_session,
+    free_port,
+)
+from tests.integration.viewer_harness import EventStream, page_server
 
 pytestmark = pytest.mark.integration
 
@@ -212,3 +219,49 @@ def test_a_bad_flag_is_one_line_before_anything_is_served(args: list[str], named
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("dms: ") and named in lines[0], done.stderr
     assert "face on" not in done.stderr
+
+
+class FaceEvents(EventStream):
+    """The face's ``/events`` (behind its token), read as :class:`EventStream` reads the
+    viewer's."""
+
+    def __init__(self, face: Face) -> None:
+        self.events: list[tuple[str, Any]] = []
+        self._cond = threading.Condition()
+        url = f"{face.base}/events?token={face.token}"
+        self._response = urllib.request.urlopen(url, timeout=READY_TIMEOUT_S)
+        threading.Thread(target=self._read, daemon=True).start()
+
+
+def test_on_a_secured_bus_the_face_role_brings_a_person_in(tmp_path: Path) -> None:
+    """``dms secure init`` writes a ``face`` role: with its file, the face's perception
+    reaches the daemon and the robot's commands and decisions reach the page."""
+    from dms import secure
+    from tests.integration.test_secure import SecuredDaemon, role_config
+
+    directory = tmp_path / "sec"
+    secure.init(directory, "mini", f"tls/127.0.0.1:{free_port()}")
+    daemon = SecuredDaemon(tmp_path, directory / "dms.json5")
+    admin = zenoh.open(role_config(directory, "admin"))
+    try:
+        daemon.start(admin)
+        decisions = Collector(admin, "robots/mini/dms/decision")
+        args = ["face", "--zenoh-config", str(directory / "face.json5"), "--port", "0"]
+        with page_server(args, "face", r"https?://\S+") as (url, _proc):
+            parts = urlsplit(url)
+            token = parse_qs(parts.query)["token"][0]
+            face = Face(url, f"{parts.scheme}://{parts.netloc}", token, daemon, admin)
+            events = FaceEvents(face)
+            try:
+                events.wait_for("snapshot", lambda s: True)
+                status, body = face.call("/api/here", {"user_id": "cleo", "consent": True})
+                assert status == 200, body
+                decisions.wait_for(lambda d: d["reason"] == "user_arrived", timeout=30)
+                events.wait_for("decision", lambda d: d["reason"] == "user_arrived", timeout=30)
+                events.wait_for("say", lambda d: bool(d["text"]), timeout=60)  # robot/command
+                events.wait_for("state", lambda s: s["user"] == "cleo", timeout=30)
+            finally:
+                events.close()
+    finally:
+        daemon.kill()
+        admin.close()
