@@ -8,11 +8,13 @@ play bingo" (espeak-ng). A person arrives; then, each time the menu is on the ta
 
 - ``tap``: a tap on an activity, to the robot's answer arriving on the page (its next
   utterance, "Great, let's go!"), both on the page's clock;
-- ``speech``: the end of push-to-talk (the tap that stops the recording) to the ``start``
-  decision of bingo arriving on the page: the recording sent, transcribed by pocketsphinx,
-  published as ``perception/speech`` and decided on. ``transcribe_ms`` is the server's
-  share (the POST's round trip). An utterance heard without "bingo", or under the daemon's
-  confidence threshold, is counted as ``misheard`` and decides nothing.
+- ``speech``: the end of push-to-talk (the tap that stops the recording) to the robot's
+  answer (the menu's "Great, let's go!") and to the ``start`` decision of bingo (which
+  follows that sentence) arriving on the page: the recording sent, transcribed by
+  pocketsphinx, published as ``perception/speech`` and decided on. ``transcribe_ms`` is
+  the server's share (the POST's round trip). An utterance heard without "bingo", or
+  under the daemon's confidence threshold, is counted as ``misheard`` and decides
+  nothing.
 
 Between trials a ``cancel`` request from another process brings the menu back. Prints one
 JSON object with p50 and p95 of each, in milliseconds.
@@ -95,9 +97,9 @@ def tap_once(face: Face, page: Any, decisions: Collector) -> float:
 
 def speak_once(
     face: Face, page: Any, decisions: Collector, seconds: float
-) -> tuple[float | None, float]:
-    """Push-to-talk once: speech end to the decision (None when misheard), and the
-    transcription's round trip."""
+) -> tuple[float | None, float | None, float]:
+    """Push-to-talk once: speech end to the robot's answer and to the decision (None
+    when misheard), and the transcription's round trip."""
     page.click("#talk-button")
     page.wait_for_selector("#talk-button.recording")
     page.wait_for_function(f"window.face.recorded > {seconds + 0.5}", timeout=WAIT_MS)
@@ -108,11 +110,12 @@ def speak_once(
     heard = posted.value.json()
     transcribe_ms = (time.perf_counter() - began) * 1000
     if "bingo" not in heard.get("text", "") or heard.get("confidence", 0) < MIN_CONFIDENCE:
-        return None, transcribe_ms  # misheard: the daemon decides nothing
+        return None, None, transcribe_ms  # misheard: the daemon decides nothing
     ended = after(page, start, "speech-end")
+    answered = after(page, start, "say", "Great")
     decided = after(page, start, "decision", "start bingo")
     menu_again(face, page, decisions, "bingo", since)
-    return float(decided["t"] - ended["t"]), transcribe_ms
+    return float(answered["t"] - ended["t"]), float(decided["t"] - ended["t"]), transcribe_ms
 
 
 def main() -> None:
@@ -124,6 +127,7 @@ def main() -> None:
     from playwright.sync_api import sync_playwright
 
     tap_ms: list[float] = []
+    answer_ms: list[float] = []
     speech_ms: list[float] = []
     transcribe_ms: list[float] = []
     misheard = 0
@@ -156,11 +160,12 @@ def main() -> None:
                 for _ in range(taps):
                     tap_ms.append(tap_once(face, page, decisions))
                 for _ in range(utterances if wav else 0):
-                    decided, transcribed = speak_once(face, page, decisions, seconds)
+                    answered, decided, transcribed = speak_once(face, page, decisions, seconds)
                     transcribe_ms.append(transcribed)
-                    if decided is None:
+                    if answered is None or decided is None:
                         misheard += 1
                     else:
+                        answer_ms.append(answered)
                         speech_ms.append(decided)
             finally:
                 browser.close()
@@ -172,6 +177,7 @@ def main() -> None:
         "misheard": misheard,
     }
     if speech_ms:
+        result["speech_end_to_answer_ms"] = percentiles(answer_ms)
         result["speech_end_to_decision_ms"] = percentiles(speech_ms)
     if transcribe_ms:
         result["transcribe_ms"] = percentiles(transcribe_ms)
