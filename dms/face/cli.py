@@ -29,7 +29,10 @@ def face_command(
     ] = None,
     zenoh_config: Annotated[
         Path | None,
-        typer.Option("--zenoh-config", help="Zenoh JSON5 configuration file."),
+        typer.Option(
+            "--zenoh-config",
+            help="Zenoh JSON5 file (a bus secured by `dms secure init`: its face.json5).",
+        ),
     ] = None,
     robot: Annotated[
         str, typer.Option("--robot", "--robot-id", help="The daemon's robot id.")
