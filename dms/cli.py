@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 import typer
 from typer.core import TyperCommand, TyperGroup
 
+from dms.face.cli import face_command
 from dms.fleet_cli import router as router_command
 from dms.foxglove_cli import foxglove as foxglove_command
 from dms.kernel.errors import DmsError
@@ -312,6 +313,7 @@ app.command("ros2")(ros2_command)
 app.command("reachy")(reachy_command)
 app.command("view")(view_command)
 app.command("studio")(studio_command)
+app.command("face")(face_command)
 use_studio_robot(_simulated_robot)  # the studio's trials drive the simulated Mini
 app.command("topics")(topics_command)
 app.command("echo")(echo_command)

@@ -38,7 +38,7 @@ from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 from dms.kernel.errors import ConfigError
 from dms.kernel.keys import ROBOT_ID_RE
 
-ROLES = ("dms", "perception", "robot", "app", "admin")
+ROLES = ("dms", "perception", "robot", "app", "admin", "face")
 """``dms`` is the daemon; the others are the programs around it."""
 
 DEFAULT_LISTEN = "tls/127.0.0.1:7447"
@@ -126,6 +126,16 @@ GRANTS: dict[str, tuple[Grant, ...]] = {
         *_watch_daemon(),
     ),
     "app": (*_app(), *_watch_daemon()),
+    # dms face: a person's perception in, what the robot says and shows and the daemon's
+    # state and decisions out; no personal data (the picker then lists nobody).
+    "face": (
+        *_input_module(("perception/**",)),
+        Grant("subscribe-command", "egress", ("declare_subscriber",), ("robot/command",)),
+        Grant("receive-command", "ingress", ("put",), ("robot/command",)),
+        Grant("subscribe-dms", "egress", ("declare_subscriber",), ("dms/state", "dms/decision")),
+        Grant("receive-dms", "ingress", ("put",), ("dms/state", "dms/decision")),
+        *_watch_daemon(),
+    ),
     "admin": (
         *_app(),
         # Reading a profile or an agenda, and changing an agenda (a query with a payload).
