@@ -91,7 +91,7 @@ def test_a_person_arrives_plays_the_quiz_rates_it_and_leaves(face: Face, page: A
     mark = decisions.mark()
     page.click("#consent-yes")
     users.wait_for(lambda m: m == {"present": True, "user_id": "ada", "ready": True})
-    assert page.inner_text("#who") == "Ada is here"
+    page.wait_for_selector("#who:text-is('Ada is here')")  # the page says so once it sent it
 
     # the opening questions: her name typed, then a choice tapped
     decided(decisions, mark, lambda d: d["action"] == "ask" and d["detail"] == "What is your name?")
@@ -163,7 +163,7 @@ def test_a_person_arrives_plays_the_quiz_rates_it_and_leaves(face: Face, page: A
     page.click("#leave-button")
     left = decided(decisions, mark, lambda d: d["reason"] == "user_left")
     assert left["action"] == "cancel"
-    assert page.inner_text("#who") == "Nobody is here"
+    page.wait_for_selector("#who:text-is('Nobody is here')")
     page.wait_for_selector("button[data-person='ada']:text('Ada')")
 
 
