@@ -19,6 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
+from activities.checks import content_shapes
+from activities.library import content_dirs
 from dms.studio.check import Report, check_document, folder_specs
 from dms.studio.errors import StudioError
 from dms.studio.roundtrip import edited_text, load, new_text, to_plain
@@ -89,7 +91,9 @@ class Folder:
         return {"name": name, "doc": doc, "hash": digest(data)}
 
     def check(self, doc: Mapping[str, Any]) -> Report:
-        return check_document(doc, self.others(str(doc.get("name", ""))))
+        name = str(doc.get("name", ""))
+        content = content_shapes(content_dirs(self.directory))
+        return check_document(doc, self.others(name), content)
 
     def save(self, doc: Mapping[str, Any], opened_hash: str | None) -> Saved:
         """Write ``doc`` as its file (its name is the file's), or as a draft if it does

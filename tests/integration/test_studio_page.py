@@ -78,8 +78,9 @@ def drag(page: Any, source: str, target: str) -> None:
     page.mouse.up()
 
 
-def message_at(page: Any, param: str, severity: str) -> str:
-    found = page.locator(f'#props .field[data-param="{param}"] .msg.{severity}')
+def message_at(page: Any, param: str, severity: str, saying: str = "") -> str:
+    """The first ``severity`` message at the field of ``param`` that says ``saying``."""
+    found = page.locator(f'#props .field[data-param="{param}"] .msg.{severity}', has_text=saying)
     found.first.wait_for()
     return str(found.first.inner_text())
 
@@ -90,8 +91,13 @@ def test_a_behavior_built_with_clicks_and_typing_is_saved_and_loads(
     ready(page, studio.url)
     page.fill("#param-name", "greeting")
     page.click('#palette button[data-block="speak"]')
+    page.fill("#param-text", "Hello {user.nmae|there}!")
+    said = message_at(page, "text", "error", "{user.nmae}")
+    assert said.endswith("user has no field 'nmae'; did you mean {user.name}?"), said
+    page.fill("#param-text", "")
+    assert "missing parameter 'text'" in message_at(page, "text", "error", "missing")
     page.fill("#param-text", "Hello {user.name|there}! I remember {answr}.")
-    assert "'answr'" in message_at(page, "text", "warning")
+    assert "answr is no userdata key" in message_at(page, "text", "error", "{answr}")
     page.fill("#param-text", "Hello {user.name|there}!")
     page.click('#palette button[data-block="ask"]')
     page.fill("#param-question", "Shall we listen to some music?")
