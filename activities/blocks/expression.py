@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import (
     Field,
     field_validator,
+    model_validator,
 )
 
 from activities.blocks.base import Block
@@ -112,6 +113,19 @@ class PoseParams(BlockParams):
         description="The poses to move through, in order: joint -> radians. The studio's "
         "Record button takes the robot's current joints as the next keyframe.",
     )
+    seconds: list[Annotated[float, Field(gt=0, le=60)]] = Field(
+        [],
+        description="How long each move takes, one per keyframe (none, or missing: as fast "
+        "as the joints go).",
+    )
+
+    @model_validator(mode="after")
+    def _one_time_per_keyframe(self) -> PoseParams:
+        if len(self.seconds) > len(self.keyframes):
+            raise ValueError(
+                f"seconds: {len(self.seconds)} times for {len(self.keyframes)} keyframes"
+            )
+        return self
 
     @field_validator("keyframes")
     @classmethod
@@ -138,9 +152,12 @@ class Pose(Block[PoseParams]):
         self._send(now)
 
     def _send(self, now: datetime) -> None:
-        keyframe = self.args.keyframes[self.next_keyframe]
+        index = self.next_keyframe
         self.next_keyframe += 1
-        self.command("motion", "pose", {"joints": dict(keyframe)}, now)
+        args: dict[str, Any] = {"joints": dict(self.args.keyframes[index])}
+        if index < len(self.args.seconds):
+            args["duration_s"] = self.args.seconds[index]
+        self.command("motion", "pose", args, now)
 
     def update(self, now: datetime) -> Status:
         error = self.command_error()
