@@ -1,6 +1,8 @@
 // The behavior being edited: plain JSON as the file writes it, changed only through
 // these functions, each change kept for undo. A state's path is its names from the
-// top, joined by "/"; the behavior itself is the container at path "".
+// top, joined by "/"; the behavior itself is the container at path "". Beside it, the
+// states placed by hand (layout: path -> [x, y] inside its container) and the file it
+// came from; a load is one more undoable change, so Undo reaches back past an Open.
 
 const STATE_KEYS = ["transitions", "input_keys", "output_keys", "remapping"];
 export const MACHINES = ["state_machine", "sequence"];
@@ -32,9 +34,11 @@ export function join(parent, name) {
 }
 
 export class Doc {
-  constructor(data, file) {
+  constructor(data, file, layout = {}) {
     this.data = data;
+    this.layout = layout; // path -> [x, y]: the states placed by hand
     this.file = file; // {name, hash}: the file it was opened from (hash null: new)
+    this.saved = this.contentKey(); // what the file holds, to tell a modified document
     this.undoStack = [];
     this.redoStack = [];
     this.lastKey = null;
@@ -45,17 +49,39 @@ export class Doc {
     this.listeners.push(listener);
   }
 
-  emit(structural) {
-    for (const listener of this.listeners) listener(structural);
+  // kind: "edit" (typing: no structural change), "change", "load" (another document)
+  emit(structural, kind = structural ? "change" : "edit") {
+    for (const listener of this.listeners) listener(structural, kind);
+  }
+
+  contentKey() {
+    return JSON.stringify([this.data, this.layout]);
+  }
+
+  get modified() {
+    return this.contentKey() !== this.saved;
+  }
+
+  snapshot() {
+    return JSON.stringify({ data: this.data, layout: this.layout, file: this.file, saved: this.saved });
+  }
+
+  restore(text) {
+    const before = JSON.stringify(this.file);
+    const kept = JSON.parse(text);
+    Object.assign(this, { data: kept.data, layout: kept.layout, file: kept.file, saved: kept.saved });
+    return JSON.stringify(this.file) !== before;
+  }
+
+  keep() {
+    this.undoStack.push(this.snapshot());
+    if (this.undoStack.length > HISTORY) this.undoStack.shift();
   }
 
   // Apply fn to the data, kept for undo; changes with the same key in a row (typing in
   // one field) are one step.
   change(fn, { key = null, structural = true } = {}) {
-    if (key === null || key !== this.lastKey) {
-      this.undoStack.push(JSON.stringify(this.data));
-      if (this.undoStack.length > HISTORY) this.undoStack.shift();
-    }
+    if (key === null || key !== this.lastKey) this.keep();
     this.lastKey = key;
     this.redoStack = [];
     const result = fn(this.data);
@@ -63,22 +89,61 @@ export class Doc {
     return result;
   }
 
-  undo() {
-    if (!this.undoStack.length) return false;
-    this.redoStack.push(JSON.stringify(this.data));
-    this.data = JSON.parse(this.undoStack.pop());
+  // Another behavior (an Open, a New, a reload from disk), as one undoable step.
+  load(data, file, layout = {}) {
+    this.keep();
+    this.redoStack = [];
     this.lastKey = null;
-    this.emit(true);
-    return true;
+    Object.assign(this, { data, layout, file });
+    this.saved = this.contentKey();
+    this.emit(true, "load");
+  }
+
+  // The file now holds what is in the page (after a save).
+  markSaved(file) {
+    this.file = file;
+    this.saved = this.contentKey();
+    this.emit(false, "saved");
+  }
+
+  undo() {
+    return this.travel(this.undoStack, this.redoStack);
   }
 
   redo() {
-    if (!this.redoStack.length) return false;
-    this.undoStack.push(JSON.stringify(this.data));
-    this.data = JSON.parse(this.redoStack.pop());
+    return this.travel(this.redoStack, this.undoStack);
+  }
+
+  travel(from, to) {
+    if (!from.length) return false;
+    to.push(this.snapshot());
+    const otherFile = this.restore(from.pop());
     this.lastKey = null;
-    this.emit(true);
+    this.emit(true, otherFile ? "load" : "change");
     return true;
+  }
+
+  // ------------------------------------------------------------ placement
+
+  // Place states by hand: moves is path -> [x, y] (inside its container), one step.
+  place(moves) {
+    this.change(() => {
+      this.layout = { ...this.layout };
+      for (const [path, at] of Object.entries(moves)) this.layout[path] = at.map((v) => Math.round(v));
+    });
+  }
+
+  // The placements of path and the states inside it: dropped, or moved to newPath.
+  movePins(path, newPath) {
+    const moved = {};
+    for (const [pinned, at] of Object.entries(this.layout)) {
+      if (pinned === path || pinned.startsWith(`${path}/`)) {
+        if (newPath) moved[newPath + pinned.slice(path.length)] = at;
+      } else {
+        moved[pinned] = at;
+      }
+    }
+    this.layout = moved;
   }
 
   // ------------------------------------------------------------ reading
@@ -152,7 +217,19 @@ export class Doc {
   }
 
   deleteState(path) {
+    this.deleteStates([path]);
+  }
+
+  // Delete states (one undo step); a state inside another deleted one goes with it.
+  deleteStates(paths) {
+    const outer = paths.filter((path) => !paths.some((other) => path.startsWith(`${other}/`)));
     this.change(() => {
+      for (const path of outer) this.removeState(path);
+    });
+  }
+
+  removeState(path) {
+    {
       const parent = parentOf(path);
       const name = nameOf(path);
       const states = this.statesOf(parent);
@@ -164,7 +241,8 @@ export class Doc {
         }
       }
       this.fixInitial(parent, name, null);
-    });
+      this.movePins(path, null);
+    }
   }
 
   fixInitial(parent, oldName, newName) {
@@ -194,6 +272,7 @@ export class Doc {
       for (const name of Object.keys(states)) delete states[name];
       Object.assign(states, rebuilt);
       this.fixInitial(parent, oldName, newName);
+      this.movePins(path, join(parent, newName));
       if (this.containerKind(parent) === "concurrence") {
         const map = this.state(parent).concurrence.outcome_map || {};
         for (const wanted of Object.values(map)) {
@@ -216,6 +295,17 @@ export class Doc {
       },
       { key: typing ? `${path}:${key}` : null, structural: !typing },
     );
+  }
+
+  // Several parameters of one state in one undo step (undefined removes one).
+  setParams(path, values) {
+    this.change(() => {
+      const holder = path ? this.state(path)[blockOf(this.state(path))] : this.data;
+      for (const [key, value] of Object.entries(values)) {
+        if (value === undefined) delete holder[key];
+        else holder[key] = value;
+      }
+    });
   }
 
   setTransition(path, outcome, target) {

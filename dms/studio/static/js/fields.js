@@ -25,6 +25,7 @@ export function kinds(schema) {
     if (option.type) types.add(option.type);
     else if (!option.enum && option.const === undefined) types.add("any");
   }
+  if (schema.choices) choices = schema.choices; // the robot's repertoire (the palette's)
   return { types, choices };
 }
 
@@ -94,7 +95,8 @@ export function field(name, schema, value, required, onInput) {
     empty.value = "";
     empty.textContent = schema.default !== undefined ? `(default: ${schema.default})` : "(none)";
     input.appendChild(empty);
-    for (const choice of choices) {
+    const listed = value === undefined || choices.some((choice) => JSON.stringify(choice) === JSON.stringify(value));
+    for (const choice of listed ? choices : [value, ...choices]) {
       const option = document.createElement("option");
       option.value = JSON.stringify(choice);
       option.textContent = String(choice);

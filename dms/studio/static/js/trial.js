@@ -22,7 +22,7 @@ function h(tag, text, cls) {
 
 export class Trial {
   constructor(handlers) {
-    this.handlers = handlers; // {doc(), selected(), lit(paths), status(text, kind), record(joints)}
+    this.handlers = handlers; // {doc(), selected(), lit(paths), status(text, kind), record(joints), moved(joints)}
     this.running = false; // the run goes on by itself
     this.active = false; // a trial was started and has not finished
     this.timer = null;
@@ -212,6 +212,8 @@ export class Trial {
     box.appendChild(h("div", `screen: ${shown || "-"}`));
     const joints = Object.entries(robot.joints).map(([k, v]) => `${k} ${v.toFixed(2)}`).join("  ");
     box.appendChild(h("div", joints, "joints"));
+    box.dataset.joints = JSON.stringify(robot.joints);
+    if (this.handlers.moved) this.handlers.moved(robot.joints);
   }
 
   log(text) {
