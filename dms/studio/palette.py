@@ -49,9 +49,9 @@ def palette() -> dict[str, Any]:
         block = next(iter(variant["required"]))
         params = variant["properties"][block]
         props = params["properties"]
-        for (named_block, param), (_what, names) in NAMED.items():
+        for (named_block, param), (_what, repertoire) in NAMED.items():
             if named_block == block and param in props:
-                props[param] = {**props[param], "choices": list(names)}
+                props[param] = {**props[param], "choices": list(repertoire)}
         holds = "states" if "states" in props else "state" if "state" in props else None
         outcomes = list(BLOCKS[block].OUTCOMES) if block in BLOCKS else []
         by_category.setdefault(_category(block), []).append(
