@@ -75,7 +75,7 @@ export function keyframesForm(keyframes, seconds, limits, { onChange, play, goto
     row.appendChild(h("td", {}, String(index + 1)));
     for (const joint of joints) {
       const { low, high } = limits[joint];
-      const input = h("input", { type: "number", step: "0.05", min: String(low), max: String(high),
+      const input = h("input", { type: "number", step: "0.01", min: String(low), max: String(high),
         "data-joint": joint, "aria-label": `keyframe ${index + 1} ${joint}` });
       input.value = frame[joint] ?? "";
       input.addEventListener("change", () => {
