@@ -108,9 +108,7 @@ def test_a_behavior_built_with_clicks_and_typing_is_saved_and_loads(
     assert "timeout_s" in message_at(page, "timeout_s", "error")
     page.fill("#param-timeout_s", "10")
     page.wait_for_selector('.port[data-path="ASK"][data-port="yes"]')
-    drag(
-        page, '.port[data-path="SPEAK"][data-port="done"] .hit', '.state[data-path="ASK"] > rect'
-    )
+    drag(page, '.port[data-path="SPEAK"][data-port="done"] .hit', '.state[data-path="ASK"] > rect')
     drag(page, '.port[data-path="ASK"][data-port="yes"] .hit', '.terminal[data-end="done"] rect')
     page.click('.state[data-path="ASK"] > rect')
     page.select_option('select[data-outcome="no"]', "done")
