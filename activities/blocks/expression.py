@@ -75,7 +75,7 @@ class Gesture(Block[GestureParams]):
         frame = self.args.toward
         if frame is None:
             return
-        located = locate(self.rt.ctx, frame, now)
+        located = locate(self.rt.ctx, frame, now, self.rt.task_frames)
         if located is None or (self.hip is not None and not located.live):
             return
         hip = turn_toward(located)["hip"]
