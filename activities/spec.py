@@ -47,7 +47,7 @@ from activities.blocks import (
 from activities.engine import PREEMPTED
 from activities.errors import BehaviorError
 from activities.names import FRAME_PARAMS, frame_problem, value_problems
-from activities.task_frames import TaskFrame, parse_frames
+from activities.task_frames import TaskFrame, close_task_frame, parse_frames
 from dms.kernel.yamlfile import Located, load_located, plain
 from dms.kernel.yamlfile import line_of_key as _line
 
@@ -384,8 +384,12 @@ def _parse_state(
         checked = _check_params(checker, path, block, params, BLOCKS[block].PARAMS, line)
         for key, message in value_problems(block, checked):
             aims = block in AIMED and key == FRAME_PARAMS.get(block)
-            if not (aims and checked.get(key) in checker.task_frames):
-                checker.problem(lines.get(key, line), path, message)
+            if aims and checked.get(key) in checker.task_frames:
+                continue
+            meant = close_task_frame(checked.get(key), checker.task_frames) if aims else None
+            if meant is not None:
+                message = f"{block}: parameter {key!r}: no task frame {checked[key]!r}; {meant}"
+            checker.problem(lines.get(key, line), path, message)
         return StateSpec(name, block, plain(checked), line=line, param_lines=lines)
     checked = _check_params(checker, path, block, params, CONTAINER_PARAMS[block], line)
     children: dict[str, StateSpec] = {}

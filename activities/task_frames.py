@@ -16,6 +16,7 @@ known places.
 
 from __future__ import annotations
 
+import difflib
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -109,6 +110,14 @@ def _triple(value: Any) -> tuple[float, float, float]:
         return (0.0, 0.0, 0.0)
     x, y, z = (float(v) for v in value)
     return (x, y, z)
+
+
+def close_task_frame(frame: Any, declared: frozenset[str]) -> str | None:
+    """``did you mean 'handle'?`` when ``frame`` is close to a declared task frame."""
+    if not isinstance(frame, str) or not declared:
+        return None
+    close = difflib.get_close_matches(frame, sorted(declared), n=1, cutoff=0.6)
+    return f"did you mean {close[0]!r}?" if close else None
 
 
 class TaskFrames:

@@ -26,6 +26,7 @@ from activities.spec import (
     CONTAINERS,
     GROUPS,
     STATE_KEYS,
+    TOP_KEYS,
     BehaviorSpec,
     StateSpec,
     check_references,
@@ -86,6 +87,10 @@ def parse_message(problem: str) -> Message:
     param = param_match.group(1) if param_match else None
     if param is None and any(word in text for word in _TRANSITION_WORDS):
         param = "transitions"
+    head = text.split(":", 1)[0]
+    if param is None and not found.group("path") and head in TOP_KEYS:
+        param = head  # a key at the behavior's top: shown at its field
+
     return Message(found.group("path") or "", param, text)
 
 

@@ -69,7 +69,7 @@ def test_a_task_frame_whose_marker_was_never_seen_is_lost(tmp_path: Path) -> Non
 @pytest.mark.parametrize(
     ("old", "new", "problem"),
     [
-        ("{frame: handle}", "{frame: handel}", "frame 'handel' cannot exist"),
+        ("{frame: handle}", "{frame: handel}", "no task frame 'handel'; did you mean 'handle'?"),
         ('handle: {of: "object:tag"', 'user: {of: "object:tag"', "frames: user: the robot has"),
         (
             '{of: "object:tag"',

@@ -224,3 +224,30 @@ def test_a_pose_set_by_the_sliders_is_recorded_timed_and_played_back(
     )
     assert checked.returncode == 0, checked.stdout + checked.stderr
     assert "seconds: [1.5]" in saved.read_text(), saved.read_text()
+
+
+def test_a_task_frame_is_declared_in_a_form_and_aimed_at_by_name(studio: Studio, page: Any) -> None:
+    ready(page, studio.url)
+    page.fill("#param-name", "fetch_cup")
+    for label, value in [("name", "handle"), ("of", "object:tag7"), ("xyz[2] (m)", "0.1")]:
+        page.fill(f'[aria-label="task frame 1 {label}"]', value)
+        page.keyboard.press("Tab")
+    page.wait_for_selector('#frames option[value="handle"]', state="attached")
+    page.click('#palette button[data-block="look_at"]')
+    page.fill("#param-frame", "handel")
+    said = message_at(page, "frame", "error", "handel")
+    assert said.endswith("no task frame 'handel'; did you mean 'handle'?"), said
+    page.fill("#param-frame", "handle")
+    page.select_option('select[data-outcome="lost"]', "done")
+    page.wait_for_selector("#status.good")
+    page.click("#save-button")
+    page.wait_for_selector("body[data-saved='saved']")
+    saved = studio.folder / "fetch_cup.yaml"
+    assert "handle: {of: object:tag7, xyz: [0, 0, 0.1]}" in saved.read_text(), saved.read_text()
+    checked = subprocess.run(
+        [sys.executable, "-m", "dms.cli", "behavior", "check", str(saved)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert checked.returncode == 0, checked.stdout + checked.stderr

@@ -9,6 +9,7 @@ const UNITS = [
   [/_m$/, "metres"],
 ];
 let frames = ["user", "face:<id>", "object:<name>"];
+let taskFrames = []; // the behavior's own (frames: at its top)
 const FRAME_PARAMS = ["frame", "toward", "attend"];
 const LONG_TEXT = ["text", "question", "description"];
 const SINGLE = /^\s*\{[A-Za-z_][\w.]*(\|[^{}]*)?\}\s*$/;
@@ -165,7 +166,7 @@ function ensureFrames() {
     document.body.appendChild(list);
   }
   list.replaceChildren();
-  for (const frame of frames) {
+  for (const frame of [...taskFrames, ...frames]) {
     const option = document.createElement("option");
     option.value = frame;
     list.appendChild(option);
@@ -174,5 +175,12 @@ function ensureFrames() {
 
 export function setFrames(list) {
   frames = list;
+  ensureFrames();
+}
+
+// The task frames the behavior declares, offered first by the frame picker.
+export function setTaskFrames(names) {
+  if (JSON.stringify(names) === JSON.stringify(taskFrames)) return;
+  taskFrames = names;
   ensureFrames();
 }

@@ -183,3 +183,75 @@ export function outcomeMapForm(map, outcomes, children, onChange) {
   }
   return { element: wrap, setMessages };
 }
+
+// The behavior's task frames: a row each (name, the marker it hangs from, its offset
+// xyz in metres and rpy in radians), and one empty row to add one.
+export function taskFramesForm(frames, onChange) {
+  const { wrap, body, setMessages } = holder("frames", "task frames",
+    "Places relative to a detected marker or object (of), kept where last known once it is lost; "
+    + "look_at, point_at and gesture aim at them by name.");
+  const rows = Object.entries(frames && typeof frames === "object" && !Array.isArray(frames) ? frames : {})
+    .map(([name, frame]) => [name, { ...frame }]);
+  const emit = () => {
+    const out = {};
+    for (const [name, frame] of rows) {
+      if (!name) continue;
+      const kept = { of: frame.of || "" };
+      for (const key of ["xyz", "rpy"]) {
+        if (Array.isArray(frame[key]) && frame[key].some((v) => v !== 0)) kept[key] = frame[key];
+      }
+      out[name] = kept;
+    }
+    onChange(Object.keys(out).length ? out : undefined);
+  };
+  const table = h("table", { class: "task-frames" });
+  const head = h("tr");
+  for (const title of ["name", "of", "x", "y", "z", "roll", "pitch", "yaw", ""]) head.appendChild(h("th", {}, title));
+  table.appendChild(head);
+  [...rows, ["", { of: "" }]].forEach(([name, frame], index) => {
+    const row = h("tr", { "data-frame": name });
+    const take = () => {
+      if (index === rows.length) rows.push(["", { of: "" }]);
+      return rows[index];
+    };
+    const nameBox = h("input", { type: "text", placeholder: "handle", "aria-label": `task frame ${index + 1} name` });
+    nameBox.value = name;
+    nameBox.addEventListener("change", () => {
+      take()[0] = nameBox.value.trim();
+      emit();
+    });
+    row.appendChild(h("td")).appendChild(nameBox);
+    const of = h("input", { type: "text", list: "frames", placeholder: "object:tag7", "aria-label": `task frame ${index + 1} of` });
+    of.value = frame.of || "";
+    of.addEventListener("change", () => {
+      take()[1].of = of.value.trim();
+      emit();
+    });
+    row.appendChild(h("td")).appendChild(of);
+    for (const [key, unit] of [["xyz", "m"], ["rpy", "rad"]]) {
+      [0, 1, 2].forEach((axis) => {
+        const box = h("input", { type: "number", step: "0.01", placeholder: "0", "data-axis": `${key}${axis}`,
+          "aria-label": `task frame ${index + 1} ${key}[${axis}] (${unit})` });
+        const values = Array.isArray(frame[key]) ? frame[key] : null;
+        box.value = values ? values[axis] : "";
+        box.addEventListener("change", () => {
+          const held = take()[1];
+          const triple = Array.isArray(held[key]) ? [...held[key]] : [0, 0, 0];
+          triple[axis] = number(box.value) ?? 0;
+          held[key] = triple;
+          emit();
+        });
+        row.appendChild(h("td")).appendChild(box);
+      });
+    }
+    const remove = h("button", { title: "Remove this task frame", "data-action": "remove" }, "✕");
+    remove.addEventListener("click", () => {
+      if (index < rows.length) rows.splice(index, 1);
+      emit();
+    });
+    row.appendChild(h("td")).appendChild(remove);
+    table.appendChild(row);
+  });
+  body.appendChild(table);
+  return { element: wrap, setMessages };
+}

@@ -4,7 +4,7 @@
 import { get, post } from "./api.js";
 import { Canvas } from "./canvas.js";
 import { blockOf, Doc, nameOf, parentOf } from "./doc.js";
-import { setFrames } from "./fields.js";
+import { setFrames, setTaskFrames } from "./fields.js";
 import { Files } from "./files.js";
 import { Posing } from "./pose.js";
 import { Props } from "./props.js";
@@ -183,6 +183,8 @@ function watch(doc) {
     if (kind !== "saved") {
       scheduleCheck();
       files.edited();
+      const declared = doc.data.frames;
+      setTaskFrames(declared && typeof declared === "object" ? Object.keys(declared) : []);
     }
     updateTitle();
   });

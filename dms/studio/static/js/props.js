@@ -4,7 +4,7 @@
 
 import { blockOf, childKey, join, MACHINES, nameOf, parentOf } from "./doc.js";
 import { field } from "./fields.js";
-import { keyframesForm, mappingForm, outcomeMapForm } from "./forms.js";
+import { keyframesForm, mappingForm, outcomeMapForm, taskFramesForm } from "./forms.js";
 
 const HIDDEN = ["states", "state"];
 
@@ -43,15 +43,20 @@ export class Props {
     this.panel.appendChild(h("div", { class: "doc" },
       "Click a block on the left to add a state; click a state to edit it."));
     const top = this.handlers.top;
-    for (const name of ["name", "description", "outcomes", "userdata", "attend"]) {
+    for (const name of ["name", "description", "outcomes", "userdata", "attend", "frames"]) {
       const schema = top[name] || {};
       const required = ["name", "outcomes"].includes(name);
-      const made = name === "userdata"
-        ? mappingForm(name, "userdata", doc.data.userdata, "The keys the behavior starts with, and their values.",
-          (value) => this.handlers.setParam("", name, value, false))
-        : field(name, schema, doc.data[name], required, (value, typing) => {
+      const set = (value) => this.handlers.setParam("", name, value, false);
+      let made;
+      if (name === "userdata") {
+        made = mappingForm(name, "userdata", doc.data.userdata, "The keys the behavior starts with, and their values.", set);
+      } else if (name === "frames") {
+        made = taskFramesForm(doc.data.frames, set);
+      } else {
+        made = field(name, schema, doc.data[name], required, (value, typing) => {
           this.handlers.setParam("", name, value, typing);
         });
+      }
       this.fields[name] = made;
       this.panel.appendChild(made.element);
     }
