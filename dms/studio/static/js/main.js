@@ -336,17 +336,16 @@ function bindKeys() {
 
 async function start() {
   bindKeys();
-  const reply = await get("/api/palette");
+  // asked together: each answer is small, the round trips are what the page waits for
+  const [reply, frames] = await Promise.all([get("/api/palette"), get("/api/frames"),
+    refreshList(""), posing.start()]);
   if (!reply.ok) {
     status(reply.data.error || "the studio refused the page: open the URL it printed", "bad");
     return;
   }
   renderPalette(reply.data.categories);
   app.top = reply.data.top;
-  await refreshList("");
-  const frames = await get("/api/frames");
   if (frames.ok) setFrames(frames.data.frames);
-  await posing.start();
   watch(app.doc);
   canvas.render();
   canvas.fit();
