@@ -451,3 +451,23 @@ def test_a_reload_refuses_a_misspelled_placeholder_and_keeps_the_old_version(
     (problem,) = library.reload()
     assert problem.startswith(f"{jokes}:") and "did you mean {joke.punchline}?" in problem
     assert library.spec("jokes") is before
+
+
+def test_behavior_check_refuses_a_misspelled_profile_field_and_an_empty_text(
+    tmp_path: Path,
+) -> None:
+    path = tmp_path / "hello.yaml"
+    path.write_text(
+        "name: hello\noutcomes: [done]\nstates:\n"
+        "  HI:\n    speak: {text: 'Hello {user.nmae|there}!'}\n    transitions: {done: BYE}\n"
+        "  BYE:\n    speak: {text: ''}\n"
+    )
+    checked = dms("behavior", "check", str(path))
+    assert checked.returncode == 1, checked.stdout + checked.stderr
+    assert f"{path}:8: state BYE: speak: parameter 'text' is empty" in checked.stdout
+    path.write_text(path.read_text().replace("{text: ''}", "{text: 'Bye!'}"))
+    checked = dms("behavior", "check", str(path))
+    assert checked.returncode == 1, checked.stdout + checked.stderr
+    assert "{user.nmae} binds to nothing: user has no field 'nmae'; did you mean {user.name}?" in (
+        checked.stdout
+    )
