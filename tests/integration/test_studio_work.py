@@ -269,3 +269,25 @@ def test_every_shipped_behavior_saved_from_the_page_is_byte_identical(
         assert path.read_bytes() == before, name
         assert page.get_attribute("body", "data-modified") == "0"
     assert not (studio.folder / "drafts").exists()
+
+
+def test_an_outcome_map_and_userdata_are_edited_in_forms(studio: Studio, context: Any) -> None:
+    page = opened(context, studio, "dance")
+    page.click('.state[data-path="DANCE"] > text.name')
+    music = page.locator('select[data-map="done/MUSIC"]')
+    assert music.input_value() == "done"
+    page.select_option('select[data-map="done/MUSIC"]', "")
+    page.wait_for_selector("body[data-modified='1']")
+    page.select_option('select[data-map="done/MUSIC"]', "done")
+    page.wait_for_selector("body[data-modified='0']")  # back as the file has it
+    page.click("#zoom-fit")
+    page.click("#canvas", position={"x": 5, "y": 5})  # nothing selected: the behavior
+    page.fill('[aria-label="userdata name 1"]', "round")
+    page.fill('[aria-label="userdata value 1"]', "3")
+    page.keyboard.press("Tab")
+    page.wait_for_selector("#status.good")
+    page.click("#save-button")
+    page.wait_for_selector("body[data-modified='0']")
+    text = (studio.folder / "dance.yaml").read_text()
+    assert "userdata:" in text and "round: 3" in text, text
+    assert "outcome_map: {done: {MUSIC: done}}" in text

@@ -206,7 +206,7 @@ export class Canvas {
     const top = Math.min(0, ...ys);
     const w = Math.max(this.placed.w - left, 1);
     const h = Math.max(this.placed.h - top, 1);
-    const scale = Math.min(1.4, Math.max(0.2, Math.min((rect.width - 40) / w, (rect.height - 40) / h)));
+    const scale = Math.min(1, Math.max(0.2, Math.min((rect.width - 40) / w, (rect.height - 40) / h)));
     this.view = { x: (rect.width - w * scale) / 2 - left * scale, y: 20 - top * scale, scale };
     this.applyView();
   }

@@ -33,6 +33,16 @@ export function join(parent, name) {
   return parent ? `${parent}/${name}` : name;
 }
 
+// A value with its mappings' keys in order, to tell whether two documents say the same:
+// a parameter removed and put back is not a change. The order of states is kept (the
+// first is the initial state, a sequence runs them in order).
+export function canonical(value, key = null) {
+  if (Array.isArray(value)) return value.map((item) => canonical(item));
+  if (!value || typeof value !== "object") return value;
+  const names = key === "states" ? Object.keys(value) : Object.keys(value).sort();
+  return names.map((name) => [name, canonical(value[name], name)]);
+}
+
 export class Doc {
   constructor(data, file, layout = {}) {
     this.data = data;
@@ -55,7 +65,7 @@ export class Doc {
   }
 
   contentKey() {
-    return JSON.stringify([this.data, this.layout]);
+    return JSON.stringify(canonical([this.data, this.layout]));
   }
 
   get modified() {
@@ -297,15 +307,16 @@ export class Doc {
     );
   }
 
-  // Several parameters of one state in one undo step (undefined removes one).
-  setParams(path, values) {
+  // Several parameters of one state in one undo step (undefined removes one); quiet: a
+  // form that shows the change already (the properties are not made again under it).
+  setParams(path, values, quiet = false) {
     this.change(() => {
       const holder = path ? this.state(path)[blockOf(this.state(path))] : this.data;
       for (const [key, value] of Object.entries(values)) {
         if (value === undefined) delete holder[key];
         else holder[key] = value;
       }
-    });
+    }, { structural: !quiet });
   }
 
   setTransition(path, outcome, target) {

@@ -5,6 +5,7 @@
 
 import { get, post } from "./api.js";
 import { ask, diffView } from "./dialog.js";
+import { canonical } from "./doc.js";
 
 const DRAFT_MS = 600; // a draft is written this long after the last edit
 const DRAFTS_KEPT = 20;
@@ -41,6 +42,7 @@ export class Files {
       `${what} replaces them. Save them first? (Discarded changes come back with Undo.)`,
       [["save", "Save"], ["discard", "Discard changes"], ["cancel", "Cancel"]]);
     if (choice === "save") return (await this.save()) === "saved";
+    if (choice === "discard") this.dropDraft(); // the designer let them go (Undo still has them)
     return choice === "discard";
   }
 
@@ -217,7 +219,7 @@ export class Files {
       draft = null;
     }
     if (!draft || !draft.data) return;
-    if (JSON.stringify([draft.data, draft.layout || {}]) === this.doc.contentKey()) {
+    if (JSON.stringify(canonical([draft.data, draft.layout || {}])) === this.doc.contentKey()) {
       this.dropDraft();
       return;
     }

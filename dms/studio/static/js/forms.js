@@ -62,9 +62,10 @@ export function keyframesForm(keyframes, seconds, limits, { onChange, play, goto
   const frames = Array.isArray(keyframes) ? keyframes.map((frame) => ({ ...frame })) : [];
   const times = Array.isArray(seconds) ? [...seconds] : [];
   const joints = JOINT_ORDER.filter((name) => name in limits);
-  const emit = () => {
+  // quiet: a value typed in a cell (the table shows it); a row moved or removed: drawn anew
+  const emit = (quiet = true) => {
     while (times.length && times[times.length - 1] === undefined) times.pop();
-    onChange(frames, times.length ? times.map((t) => (t === undefined ? 1 : t)) : undefined);
+    onChange(frames, times.length ? times.map((t) => (t === undefined ? 1 : t)) : undefined, quiet);
   };
   const table = h("table", { class: "keyframes" });
   const head = h("tr");
@@ -105,12 +106,12 @@ export function keyframesForm(keyframes, seconds, limits, { onChange, play, goto
       if (index === 0) return;
       [frames[index - 1], frames[index]] = [frames[index], frames[index - 1]];
       [times[index - 1], times[index]] = [times[index], times[index - 1]];
-      emit();
+      emit(false);
     });
     button("✕", "Remove this keyframe", "remove", () => {
       frames.splice(index, 1);
       times.splice(index, 1);
-      emit();
+      emit(false);
     });
     row.appendChild(tools);
     table.appendChild(row);
@@ -132,7 +133,7 @@ export function mappingForm(name, title, mapping, help, onChange) {
     for (const [key, value] of rows) if (key) out[key] = value;
     onChange(Object.keys(out).length ? out : undefined);
   };
-  [...rows, ["", ""]].forEach((entry, index) => {
+  const addRow = (entry, index) => {
     const row = h("div", { class: "row" });
     const key = h("input", { type: "text", placeholder: "name", "aria-label": `${name} name ${index + 1}` });
     key.value = entry[0];
@@ -140,7 +141,10 @@ export function mappingForm(name, title, mapping, help, onChange) {
       "aria-label": `${name} value ${index + 1}` });
     value.value = index < rows.length ? shownScalar(entry[1]) : "";
     const update = () => {
-      if (index === rows.length) rows.push(["", ""]);
+      if (index === rows.length) {
+        rows.push(["", ""]);
+        addRow(["", ""], rows.length); // a blank row to add the next one
+      }
       rows[index] = [key.value.trim(), scalar(value.value)];
       emit();
     };
@@ -148,7 +152,9 @@ export function mappingForm(name, title, mapping, help, onChange) {
     value.addEventListener("change", update);
     row.append(key, value);
     body.appendChild(row);
-  });
+  };
+  rows.forEach((entry, index) => addRow(entry, index));
+  addRow(["", ""], rows.length);
   return { element: wrap, setMessages };
 }
 
@@ -208,10 +214,13 @@ export function taskFramesForm(frames, onChange) {
   const head = h("tr");
   for (const title of ["name", "of", "x", "y", "z", "roll", "pitch", "yaw", ""]) head.appendChild(h("th", {}, title));
   table.appendChild(head);
-  [...rows, ["", { of: "" }]].forEach(([name, frame], index) => {
+  const addRow = ([name, frame], index) => {
     const row = h("tr", { "data-frame": name });
     const take = () => {
-      if (index === rows.length) rows.push(["", { of: "" }]);
+      if (index === rows.length) {
+        rows.push(["", { of: "" }]);
+        addRow(["", { of: "" }], rows.length); // a blank row to add the next one
+      }
       return rows[index];
     };
     const nameBox = h("input", { type: "text", placeholder: "handle", "aria-label": `task frame ${index + 1} name` });
@@ -246,12 +255,16 @@ export function taskFramesForm(frames, onChange) {
     }
     const remove = h("button", { title: "Remove this task frame", "data-action": "remove" }, "✕");
     remove.addEventListener("click", () => {
-      if (index < rows.length) rows.splice(index, 1);
+      if (index >= rows.length) return;
+      rows[index] = ["", { of: "" }]; // emptied, not spliced: the other rows keep their index
+      row.remove();
       emit();
     });
     row.appendChild(h("td")).appendChild(remove);
     table.appendChild(row);
-  });
+  };
+  rows.forEach((entry, index) => addRow(entry, index));
+  addRow(["", { of: "" }], rows.length);
   body.appendChild(table);
   return { element: wrap, setMessages };
 }

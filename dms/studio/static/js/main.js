@@ -106,7 +106,7 @@ const props = new Props(document.getElementById("props"), {
   outcomesOf: (path) => canvas.outcomesOf(path),
   get limits() { return posing.limits; },
   setParam: (path, name, value, typing) => app.doc.setParam(path, name, value, typing),
-  setParams: (path, values) => app.doc.setParams(path, values),
+  setParams: (path, values, quiet) => app.doc.setParams(path, values, quiet),
   play: (path) => trial.start(path, true),
   goto: (joints) => posing.pose(joints),
   rename: (path, name) => {

@@ -7,6 +7,11 @@ import { field } from "./fields.js";
 import { keyframesForm, mappingForm, outcomeMapForm, taskFramesForm } from "./forms.js";
 
 const HIDDEN = ["states", "state"];
+const SET_DATA = {
+  values: "Keys set to these values.",
+  add: "Numbers added to these keys.",
+  append: "Values appended to these lists.",
+};
 
 function h(tag, attrs, text) {
   const node = document.createElement(tag);
@@ -46,7 +51,7 @@ export class Props {
     for (const name of ["name", "description", "outcomes", "userdata", "attend", "frames"]) {
       const schema = top[name] || {};
       const required = ["name", "outcomes"].includes(name);
-      const set = (value) => this.handlers.setParam("", name, value, false);
+      const set = (value) => this.handlers.setParams("", { [name]: value }, true);
       let made;
       if (name === "userdata") {
         made = mappingForm(name, "userdata", doc.data.userdata, "The keys the behavior starts with, and their values.", set);
@@ -121,20 +126,24 @@ export class Props {
     if (block === "pose" && name === "seconds") return "none";
     if (block === "pose" && name === "keyframes" && !(typeof params.keyframes === "string")) {
       return keyframesForm(params.keyframes, params.seconds, this.handlers.limits, {
-        onChange: (keyframes, seconds) => this.handlers.setParams(path, { keyframes, seconds }),
+        onChange: (keyframes, seconds, quiet) => this.handlers.setParams(path, { keyframes, seconds }, quiet),
         play: () => this.handlers.play(path),
         goto: (joints) => this.handlers.goto(joints),
       });
     }
     if (name === "userdata") {
       return mappingForm(name, "userdata", params.userdata, "This container's own keys and their values.",
-        (value) => this.handlers.setParam(path, name, value, false));
+        (value) => this.handlers.setParams(path, { [name]: value }, true));
+    }
+    if (block === "set_data" && SET_DATA[name] && (params[name] === undefined || typeof params[name] === "object")) {
+      return mappingForm(name, name, params[name], SET_DATA[name],
+        (value) => this.handlers.setParams(path, { [name]: value }, true));
     }
     if (block === "concurrence" && name === "outcome_map") {
       const children = Object.keys(doc.statesOf(path) || {})
         .map((child) => [child, this.handlers.outcomesOf(join(path, child))]);
       return outcomeMapForm(params.outcome_map, params.outcomes || [], children,
-        (value) => this.handlers.setParam(path, name, value, false));
+        (value) => this.handlers.setParams(path, { [name]: value }, true));
     }
     return null;
   }
