@@ -113,9 +113,9 @@ class PoseParams(BlockParams):
         description="The poses to move through, in order: joint -> radians. The studio's "
         "Record button takes the robot's current joints as the next keyframe.",
     )
-    seconds: list[Annotated[float, Field(gt=0, le=60)]] = Field(
+    seconds: list[Annotated[float, Field(gt=0, le=60)] | None] = Field(
         [],
-        description="How long each move takes, one per keyframe (none, or missing: as fast "
+        description="How long each move takes, one per keyframe (null, or missing: as fast "
         "as the joints go).",
     )
 
@@ -155,8 +155,9 @@ class Pose(Block[PoseParams]):
         index = self.next_keyframe
         self.next_keyframe += 1
         args: dict[str, Any] = {"joints": dict(self.args.keyframes[index])}
-        if index < len(self.args.seconds):
-            args["duration_s"] = self.args.seconds[index]
+        seconds = self.args.seconds[index] if index < len(self.args.seconds) else None
+        if seconds is not None:
+            args["duration_s"] = seconds
         self.command("motion", "pose", args, now)
 
     def update(self, now: datetime) -> Status:

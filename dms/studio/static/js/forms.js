@@ -65,7 +65,7 @@ export function keyframesForm(keyframes, seconds, limits, { onChange, play, goto
   // quiet: a value typed in a cell (the table shows it); a row moved or removed: drawn anew
   const emit = (quiet = true) => {
     while (times.length && times[times.length - 1] === undefined) times.pop();
-    onChange(frames, times.length ? times.map((t) => (t === undefined ? 1 : t)) : undefined, quiet);
+    onChange(frames, times.length ? times.map((t) => (t === undefined ? null : t)) : undefined, quiet);
   };
   const table = h("table", { class: "keyframes" });
   const head = h("tr");
