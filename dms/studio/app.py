@@ -12,7 +12,8 @@ Every request passes the viewer's :class:`~dms.viewer.guard.HostGuard` (a foreig
   on disk), and the states placed by hand beside it;
 - ``POST /api/compare`` ``{doc}``: the file on disk and what a save would write;
 - ``POST /api/try/start`` ``{doc, state?}``, ``/api/try/step``, ``/api/try/answer``
-  ``{text}``, ``/api/try/stop``: a trial on the simulated Mini;
+  ``{text}``, ``/api/try/stop``, ``/api/try/marker`` ``{seen}``: a trial on the simulated
+  Mini (the marker on its table hidden or shown);
 - ``POST /api/daemon/try`` ``{doc, state?, step?}``, ``GET /api/daemon/try?since=N``
   (its states), ``POST /api/daemon/step``, ``/api/daemon/answer`` ``{text}``,
   ``/api/daemon/stop``: a try on the daemon's robot (``--connect``), which the daemon
@@ -50,7 +51,7 @@ from dms.studio.folder import Folder
 from dms.studio.link import DaemonLink
 from dms.studio.palette import palette
 from dms.studio.rules import RulesFiles
-from dms.studio.trial import RobotFactory, Trial, one_state
+from dms.studio.trial import MARKER, RobotFactory, Trial, one_state
 from dms.viewer.guard import WILDCARDS, HostGuard, allowed_hosts
 
 DEFAULT_FRAMES = ["user", "face:<id>", "object:<name>"]
@@ -176,6 +177,12 @@ class Studio:
             raise StudioError("text: what the user says, screen:CHOICE or touch:PART")
         return {"taken": await run_in_threadpool(self._trial().answer, text)}
 
+    async def try_marker(self, request: Request) -> Any:
+        seen = (await body(request)).get("seen")
+        if not isinstance(seen, bool):
+            raise StudioError("seen: true to show the marker, false to hide it")
+        return {"seen": await run_in_threadpool(self._trial().show_marker, seen)}
+
     async def try_stop(self, _request: Request) -> Any:
         if self.trial is not None:
             await run_in_threadpool(self.trial.stop)
@@ -218,7 +225,7 @@ class Studio:
 
     async def frames(self, _request: Request) -> Any:
         if self.link is None:
-            return {"frames": DEFAULT_FRAMES, "on": "sim"}
+            return {"frames": [*DEFAULT_FRAMES, MARKER], "on": "sim"}
         seen = await run_in_threadpool(self.link.frames)
         return {"frames": sorted({*seen, *DEFAULT_FRAMES}, key=frame_order), "on": "daemon"}
 
@@ -313,6 +320,7 @@ def create_app(
             Route("/api/try/step", api(studio.try_step), methods=["POST"]),
             Route("/api/try/answer", api(studio.try_answer), methods=["POST"]),
             Route("/api/try/stop", api(studio.try_stop), methods=["POST"]),
+            Route("/api/try/marker", api(studio.try_marker), methods=["POST"]),
             Route("/api/robot", api(studio.robot)),
             Route("/api/robot/pose", api(studio.pose), methods=["POST"]),
             Route("/api/body", api(studio.body_limits)),

@@ -243,3 +243,37 @@ def test_the_simulated_mini_is_posed_by_hand_within_its_limits(studio: Studio) -
         assert status == 400 and wrong in refused["error"], refused
     status, compared = studio.request("POST", "/api/compare", {"doc": {"name": "Bad Name"}})
     assert status == 400 and "lower-case letters" in compared["error"]
+
+
+@pytest.mark.integration
+def test_a_task_frame_stays_where_its_marker_was_last_seen_in_a_trial(studio: Studio) -> None:
+    doc = {
+        "name": "handle",
+        "outcomes": ["done", "lost"],
+        "frames": {"handle": {"of": "object:tag", "xyz": [0.0, 0.1, 0.2]}},
+        "states": {
+            "FIRST": {"look_at": {"frame": "handle"}, "transitions": {"done": "HOLD"}},
+            "HOLD": {"wait": {"seconds": 2}, "transitions": {"done": "AGAIN"}},
+            "AGAIN": {"point_at": {"frame": "handle"}},
+        },
+    }
+    status, frames = studio.request("GET", "/api/frames")
+    assert status == 200 and "object:tag" in frames["frames"]
+    status, step = studio.request("POST", "/api/try/start", {"doc": doc})
+    assert status == 200 and step["path"] == "FIRST", step
+    (first,) = [c["args"] for c in step["commands"] if c["channel"] == "aim"]
+    assert first["live"] is True and first["position"] == {"x": 0.5, "y": -0.1, "z": 0.2}
+    status, hidden = studio.request("POST", "/api/try/marker", {"seen": False})
+    assert status == 200 and hidden == {"seen": False}
+    aims = []
+    for _ in range(10):
+        status, step = studio.request("POST", "/api/try/step")
+        assert status == 200, step
+        aims += [c["args"] for c in step["commands"] if c["channel"] == "aim"]
+        if step["finished"]:
+            break
+    assert step["outcome"] == "done", step
+    (again,) = aims
+    assert again["live"] is False and again["position"] == first["position"]
+    status, refused = studio.request("POST", "/api/try/marker", {"seen": "no"})
+    assert status == 400 and "seen: true" in refused["error"]

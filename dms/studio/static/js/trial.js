@@ -37,6 +37,16 @@ export class Trial {
     on("answer-button", () => this.answer());
     on("skip-button", () => this.step(this.running));
     on("record-button", () => this.record());
+    const marker = document.getElementById("marker-seen");
+    marker.addEventListener("change", async () => {
+      const reply = await post("/api/try/marker", { seen: marker.checked });
+      if (!reply.ok) {
+        marker.checked = !marker.checked;
+        this.handlers.status(reply.data.error, "bad");
+        return;
+      }
+      this.log(reply.data.seen ? "the marker is seen again" : "the marker is hidden");
+    });
     document.getElementById("answer-input").addEventListener("keydown", (event) => {
       if (event.key === "Enter") this.answer();
     });
@@ -68,6 +78,7 @@ export class Trial {
       return;
     }
     this.active = true;
+    document.getElementById("marker-seen").checked = true; // each trial starts with it seen
     this.prefix = state && state.includes("/") ? state.slice(0, state.lastIndexOf("/")) : "";
     this.show(reply.data);
   }
