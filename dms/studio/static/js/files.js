@@ -94,6 +94,7 @@ export class Files {
       return null;
     }
     if (reply.data.kind === "saved") {
+      this.dropDraft(); // under the name it had: "(new)", or the file before a rename
       doc.markSaved({ name: doc.data.name, hash: reply.data.hash });
       this.dropDraft();
       this.hooks.status(`saved ${reply.data.file}`, "good");
