@@ -291,3 +291,27 @@ def test_an_outcome_map_and_userdata_are_edited_in_forms(studio: Studio, context
     text = (studio.folder / "dance.yaml").read_text()
     assert "userdata:" in text and "round: 3" in text, text
     assert "outcome_map: {done: {MUSIC: done}}" in text
+
+
+def test_a_new_behavior_not_saved_is_offered_back_until_it_is_saved(
+    studio: Studio, context: Any
+) -> None:
+    page = opened(context, studio)
+    page.fill("#param-name", "kept_draft")
+    page.click('#palette button[data-block="speak"]')
+    page.fill("#param-text", "Hello again.")
+    page.wait_for_selector("body[data-drafted]")
+    page.close()
+
+    again = opened(context, studio)  # the page opened again, without a file
+    again.wait_for_selector("dialog#ask[open]")
+    assert "Edits of a new behavior not saved" in again.inner_text("dialog#ask h2")
+    answer(again, "restore")
+    again.wait_for_selector('.state[data-path="SPEAK"]')
+    again.wait_for_selector("#status.good")
+    again.click("#save-button")
+    again.wait_for_selector("body[data-saved='saved']")
+    assert "Hello again." in (studio.folder / "kept_draft.yaml").read_text()
+    # the dialog opens as the page becomes ready, if it opens at all
+    third = opened(context, studio)
+    assert third.locator("dialog#ask[open]").count() == 0
