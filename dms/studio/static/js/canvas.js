@@ -328,9 +328,16 @@ export class Canvas {
       }
     };
     this.svg.addEventListener("pointerup", release);
-    this.svg.addEventListener("pointercancel", (event) => {
-      if (this.drag && this.drag.kind === "press") this.preview = null;
-      release(event);
+    this.svg.addEventListener("pointercancel", () => {
+      // the browser took the pointer away: the drag is dropped, nothing changes
+      const done = this.drag;
+      if (!done) return;
+      this.drag = null;
+      this.preview = null;
+      if (done.line) done.line.remove();
+      if (done.band) done.band.remove();
+      this.pending = false;
+      this.draw();
     });
     this.svg.addEventListener("wheel", (event) => {
       event.preventDefault();
