@@ -143,6 +143,16 @@ export class Doc {
     });
   }
 
+  // Forget where paths (all: null) were placed by hand: laid out again, one step.
+  unplace(paths = null) {
+    const dropped = Object.keys(this.layout).filter((path) => !paths || paths.includes(path));
+    if (!dropped.length) return false;
+    this.change(() => {
+      this.layout = Object.fromEntries(Object.entries(this.layout).filter(([path]) => !dropped.includes(path)));
+    });
+    return true;
+  }
+
   // The placements of path and the states inside it: dropped, or moved to newPath.
   movePins(path, newPath) {
     const moved = {};

@@ -331,6 +331,10 @@ function bindKeys() {
   on("zoom-in", () => canvas.zoom(1.2));
   on("zoom-out", () => canvas.zoom(1 / 1.2));
   on("zoom-fit", () => canvas.fit());
+  on("arrange", () => {
+    const chosen = canvas.selection.size ? [...canvas.selection] : null;
+    if (!app.doc.unplace(chosen)) status("nothing placed by hand to lay out again");
+  });
   document.getElementById("open-select").addEventListener("change", (event) => files.open(event.target.value));
 }
 
