@@ -256,7 +256,7 @@ class Settings(_Section):
     @field_validator("robot_id")
     @classmethod
     def _robot_id(cls, value: str) -> str:
-        if not ROBOT_ID_RE.match(value):
+        if not ROBOT_ID_RE.fullmatch(value):
             raise ValueError(f"{value!r} does not match [a-z0-9_-]+")
         return value
 

@@ -57,7 +57,7 @@ def foxglove(
     from dms.foxglove_bridge import FoxgloveBridge
 
     robot_id = robot_id if robot_id is not None else robot
-    if robot_id != "*" and not keys.ROBOT_ID_RE.match(robot_id):
+    if robot_id != "*" and not keys.ROBOT_ID_RE.fullmatch(robot_id):
         raise ConfigError(f"--robot {robot_id!r}: lower-case letters, digits, _ and - only")
     config = make_client_config(list(connect or []), zenoh_config)
     stop = threading.Event()

@@ -43,7 +43,7 @@ class NothingSeen(ConfigError):
 
 
 def _robot(robot_id: str) -> str:
-    if not keys.ROBOT_ID_RE.match(robot_id):
+    if not keys.ROBOT_ID_RE.fullmatch(robot_id):
         raise ConfigError(f"--robot: {robot_id!r} does not match [a-z0-9_-]+")
     return robot_id
 

@@ -47,7 +47,7 @@ CA_DAYS = 3650
 CERT_DAYS = 825
 """A role certificate's validity; ``docs/security.md`` says how to rotate one."""
 
-_ENDPOINT_RE = re.compile(r"^tls/(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9.-]+):(?P<port>\d{1,5})$")
+_ENDPOINT_RE = re.compile(r"tls/(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9.-]+):(?P<port>\d{1,5})")
 
 Flow = Literal["ingress", "egress"]
 Message = Literal[
@@ -149,14 +149,14 @@ def common_name(role: str, robot_id: str) -> str:
 
 
 def check_robot_id(robot_id: str) -> str:
-    if not ROBOT_ID_RE.match(robot_id):
+    if not ROBOT_ID_RE.fullmatch(robot_id):
         raise ConfigError(f"bad robot id {robot_id!r}: use lower-case letters, digits, _ and -")
     return robot_id
 
 
 def parse_listen(endpoint: str) -> tuple[str, int]:
     """(host, port) of a ``tls/HOST:PORT`` endpoint; ConfigError otherwise."""
-    match = _ENDPOINT_RE.match(endpoint)
+    match = _ENDPOINT_RE.fullmatch(endpoint)
     port = int(match.group("port")) if match else 0
     if match is None or not 0 < port < 65536:
         raise ConfigError(

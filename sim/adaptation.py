@@ -75,6 +75,7 @@ def features_ranking(sim: Simulation, user_id: str) -> list[str] | None:
 
 
 @functools.cache
+@functools.cache
 def population_ranking() -> tuple[str, ...]:
     """The activities by mean position in the learner's training data, best first."""
     from memory.preferences import load_seed

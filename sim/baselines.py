@@ -6,6 +6,10 @@ system's learned choice (``dms``), or a baseline that shows what the learning ad
 
 - ``random``: any activity, uniformly;
 - ``fixed``: the activities in a fixed cycle, the same for everyone;
+- ``popular``: the activity the learner's training data likes best that was not just
+  done, the same for everyone (what a designer would ship without any learning);
+- ``greedy``: the daemon's own learned ranking, its best (expected liking) that was not
+  just done, with no random draw;
 - ``least_liked``: the participant's true worst (a floor: it reads the hidden truth);
 - ``oracle``: the participant's true favourite (a ceiling: it reads the hidden truth).
 
@@ -22,14 +26,23 @@ from collections.abc import Callable, Collection
 from typing import TYPE_CHECKING, Literal
 
 from dms.kernel.activity_names import ENTERTAINMENT_ACTIVITIES
+from sim.adaptation import population_ranking
 
 if TYPE_CHECKING:
     from memory import ActivityChooser
     from memory.profile import Profile
     from sim.harness import Simulation
 
-ChooserName = Literal["dms", "random", "fixed", "least_liked", "oracle"]
-CHOOSERS: tuple[ChooserName, ...] = ("dms", "random", "fixed", "least_liked", "oracle")
+ChooserName = Literal["dms", "random", "fixed", "popular", "greedy", "least_liked", "oracle"]
+CHOOSERS: tuple[ChooserName, ...] = (
+    "dms",
+    "random",
+    "fixed",
+    "popular",
+    "greedy",
+    "least_liked",
+    "oracle",
+)
 BASELINES: tuple[ChooserName, ...] = CHOOSERS[1:]
 Truth = Callable[[str], dict[str, float] | None]
 """A participant's hidden liking of each activity, by user id (None: unknown)."""
@@ -62,6 +75,10 @@ class BaselineChooser:
                 self._turn += 1
                 if pick in names:
                     return pick
+        if self.name == "popular":
+            return next(name for name in population_ranking() if name in names)
+        if self.name == "greedy":
+            return next(name for name in self.inner.ranking(profile, self.rng) if name in names)
         liking = self.truth(profile.user_id) or {}
         best = sorted(names, key=lambda n: (liking.get(n, 0.5), self.rng.random()))
         return best[0] if self.name == "least_liked" else best[-1]

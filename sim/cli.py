@@ -117,7 +117,7 @@ RulesOption = Annotated[
 ]
 
 
-ChooserOption = Literal["dms", "random", "fixed", "least_liked", "oracle"]
+ChooserOption = Literal["dms", "random", "fixed", "popular", "greedy", "least_liked", "oracle"]
 PopulationOption = Literal["paper", "personas", "heldout"]
 
 
@@ -260,10 +260,16 @@ def compare_command(
     population: Annotated[
         PopulationOption, typer.Option(help="The participants (as dms sim study's).")
     ] = "paper",
+    repeat: Annotated[
+        int,
+        typer.Option(
+            min=1, max=100, help="Visits of each participant; every metric is also given per visit."
+        ),
+    ] = 1,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
 ) -> None:
     """Run two designs or choosers on the same participants; per metric, both means and
-    the paired difference (B - A) with a bootstrap 95 % interval."""
+    the paired difference (B - A) with a bootstrap 95 % interval, pooled and per visit."""
     from sim.compare import compare, table, to_json
     from sim.study import study_settings
 
@@ -271,7 +277,7 @@ def compare_command(
     settings_b, raw_b = _design(design_b if design_b is not None else design_a, rules_b)
     chosen = _seeds(seeds)
     runs = len(chosen) if chosen is not None else 1
-    with _progress(2 * sessions * runs, "sessions (A, then B)") as told:
+    with _progress(2 * sessions * repeat * runs, "sessions (A, then B)") as told:
         done = {"A": 0, "B": 0}
 
         def progress(label: str, count: int) -> None:
@@ -289,6 +295,7 @@ def compare_command(
             chooser_b=chooser_b,
             seeds=chosen,
             population=population,
+            repeat=repeat,
         )
     if as_json:
         _print_json(to_json(result))
@@ -300,7 +307,7 @@ def compare_command(
 def sensitivity_command(
     sessions: Annotated[int, typer.Option(min=2, max=10000, help="Participants.")] = 30,
     minutes: Annotated[float, typer.Option(min=0.5, max=24 * 60, help="Session length.")] = 30.0,
-    seeds: SeedsOption = "0-2",
+    seeds: SeedsOption = "0-9",
     change: Annotated[
         float, typer.Option(min=0.01, max=0.99, help="Move each input by this share.")
     ] = 0.5,
@@ -312,17 +319,17 @@ def sensitivity_command(
     ] = Path("sensitivity"),
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
 ) -> None:
-    """Move each participant input of sim/calibration.py by ±50 % and show which Table 4
-    metric moves with it (a CSV and a tornado chart)."""
-    from sim.calibration import PARTICIPANT_INPUTS
-    from sim.sensitivity import sweep, write_csv, write_tornado
+    """Move each input of the study (the participants', the robot's, the protocol's, the
+    content's and the controller's settings) by ±50 % and show which Table 4 metric moves
+    with it, above each metric's noise floor over the seeds (a CSV and a tornado chart)."""
+    from sim.sensitivity import SWEEPABLE, sweep, write_csv, write_tornado
 
     chosen = _seeds(seeds) or [0]
-    names = list(only) if only else list(PARTICIPANT_INPUTS)
-    unknown = [name for name in names if name not in PARTICIPANT_INPUTS]
+    names = list(only) if only else list(SWEEPABLE)
+    unknown = [name for name in names if name not in SWEEPABLE]
     if unknown:
         raise typer.BadParameter(
-            f"{', '.join(unknown)}: not a participant input ({', '.join(PARTICIPANT_INPUTS)})",
+            f"{', '.join(unknown)}: not an input of the study ({', '.join(SWEEPABLE)})",
             param_hint="--only",
         )
     with _progress(len(chosen) * (1 + 2 * len(names)), "studies") as told:
@@ -433,7 +440,7 @@ def robot_command(
     from dms.kernel.keys import ROBOT_ID_RE
     from sim.robot_node import RobotNode
 
-    if not ROBOT_ID_RE.match(robot_id):
+    if not ROBOT_ID_RE.fullmatch(robot_id):
         raise SimError(f"--robot-id: {robot_id!r} does not match [a-z0-9_-]+")
     endpoints = connect if connect or listen else [DEFAULT_ENDPOINT]
     with ZenohClient(robot_id, make_config(listen=listen or (), connect=endpoints or ())) as client:

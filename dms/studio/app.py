@@ -2,7 +2,7 @@
 
 Every request passes the viewer's :class:`~dms.viewer.guard.HostGuard` (a foreign
 ``Host`` is 421, a write from a foreign ``Origin`` 403) and then the
-:class:`~dms.studio.auth.TokenGuard` (no token, 403). The API:
+:class:`~dms.viewer.auth.TokenGuard` (no token, 403; the URL with the token sets a cookie). The API:
 
 - ``GET /api/palette``: the blocks by category with their schemas;
 - ``GET /api/behaviors``: the folder and its behaviors; ``GET /api/behaviors/NAME``
@@ -45,13 +45,13 @@ from starlette.staticfiles import StaticFiles
 
 from dms.kernel.body import JOINTS, NEUTRAL
 from dms.studio import placement
-from dms.studio.auth import TokenGuard
 from dms.studio.errors import StudioError
 from dms.studio.folder import Folder
 from dms.studio.link import DaemonLink
 from dms.studio.palette import palette
 from dms.studio.rules import RulesFiles
 from dms.studio.trial import MARKER, RobotFactory, Trial, one_state
+from dms.viewer.auth import TokenGuard
 from dms.viewer.guard import WILDCARDS, HostGuard, allowed_hosts
 
 DEFAULT_FRAMES = ["user", "face:<id>", "object:<name>"]
@@ -74,9 +74,15 @@ def api(handler: Handler) -> Callable[[Request], Awaitable[Response]]:
         try:
             return reply(await handler(request))
         except StudioError as error:
-            return reply({"error": str(error)}, error.status)
+            return reply({"error": one_line(str(error))}, error.status)
 
     return endpoint
+
+
+def one_line(message: str) -> str:
+    """A refusal on one line: YAML's and the loader's messages span several (a caret
+    under the spot), and a page or a script shows the first line of what it gets."""
+    return " | ".join(line.strip() for line in message.splitlines() if line.strip())
 
 
 async def body(request: Request) -> dict[str, Any]:
@@ -157,10 +163,11 @@ class Studio:
             doc = one_state(doc, state)
         if self.trial is not None:
             self.trial.stop()
+        seed = data.get("seed") or 0
+        if not isinstance(seed, int) or isinstance(seed, bool):
+            raise StudioError("seed: a whole number, or none")
         self.posed = None  # the trial's Mini starts from neutral
-        self.trial = await run_in_threadpool(
-            Trial, self.folder, doc, self.robot_factory(0), int(data.get("seed") or 0)
-        )
+        self.trial = await run_in_threadpool(Trial, self.folder, doc, self.robot_factory(0), seed)
         return await run_in_threadpool(self.trial.step)
 
     def _trial(self) -> Trial:
@@ -343,6 +350,6 @@ def create_app(
                 port=port,
                 any_address=host in WILDCARDS,
             ),
-            Middleware(TokenGuard, token=token),
+            Middleware(TokenGuard, token=token, page="studio", command="studio", port=port),
         ],
     )

@@ -91,9 +91,9 @@ def studio_command(
     """
     from activities.library import BEHAVIORS_DIR
     from dms.studio.app import Studio, create_app
-    from dms.studio.auth import new_token
     from dms.studio.folder import Folder
     from dms.studio.rules import rules_files
+    from dms.viewer.auth import new_token
     from dms.viewer.cli import bind, page_url
     from dms.viewer.server import serve
     from dms.viewer.tls import server_context
@@ -135,6 +135,6 @@ def _connect(connect: list[str], zenoh_config: Path | None, robot: str) -> Daemo
     from dms.kernel.keys import ROBOT_ID_RE
     from dms.studio.link import DaemonLink
 
-    if not ROBOT_ID_RE.match(robot):
+    if not ROBOT_ID_RE.fullmatch(robot):
         raise ConfigError(f"--robot {robot!r}: lower-case letters, digits, _ and -")
     return DaemonLink(ZenohClient(robot, make_client_config(connect, zenoh_config)))

@@ -27,8 +27,12 @@ from dms.studio.check import Report, check_document, folder_specs
 from dms.studio.errors import StudioError
 from dms.studio.roundtrip import edited_text, load, new_text, to_plain
 
-NAME_RE = re.compile(r"^[a-z][a-z0-9_]*$")
-"""A behavior's name: its file's name, and what the rules and the daemon call it."""
+NAME_RE = re.compile(r"[a-z][a-z0-9_]*")
+"""A behavior's name: its file's name, and what the rules and the daemon call it. Matched
+whole (``fullmatch``): ``$`` would let a name end in a line break into the file name."""
+MAX_NAME = 64
+"""The longest name taken: a file system refuses a name of a few hundred bytes, and a
+refusal should say so rather than fail on the write."""
 DRAFTS = "drafts"
 
 
@@ -62,13 +66,24 @@ class Folder:
         self.shipped = shipped
 
     def path(self, name: str) -> Path:
-        if not NAME_RE.match(name):
-            raise StudioError(f"a behavior's name is lower-case letters, digits and _: {name!r}")
+        """The file of the behavior ``name``; a name that is not one is a 400."""
+        if len(name) > MAX_NAME:
+            raise StudioError(
+                f"a behavior's name is at most {MAX_NAME} characters: {name[:20]!r}... "
+                f"has {len(name)}"
+            )
+        if not NAME_RE.fullmatch(name):
+            raise StudioError(
+                f"a behavior's name is a lower-case letter, then lower-case letters, digits "
+                f"and _: {name!r}"
+            )
         return self.directory / f"{name}.yaml"
 
     def names(self) -> list[str]:
         return sorted(
-            path.stem for path in self.directory.glob("*.yaml") if NAME_RE.match(path.stem)
+            path.stem
+            for path in self.directory.glob("*.yaml")
+            if len(path.stem) <= MAX_NAME and NAME_RE.fullmatch(path.stem)
         )
 
     def others(self, name: str) -> dict[str, Any]:
@@ -84,6 +99,8 @@ class Folder:
             data = path.read_bytes()
         except FileNotFoundError:
             raise StudioError(f"no behavior {name!r} in {self.directory}", 404) from None
+        except OSError as error:
+            raise StudioError(f"{path.name}: cannot read: {error.strerror or error}", 422) from None
         try:
             doc = to_plain(load(data.decode("utf-8")))
         except Exception as error:  # ruamel's errors share no base but Exception
@@ -131,6 +148,8 @@ class Folder:
             current: bytes | None = path.read_bytes()
         except FileNotFoundError:
             current = None
+        except OSError as error:
+            raise StudioError(f"{path.name}: cannot read: {error.strerror or error}", 422) from None
         if current is not None and opened_hash is None:
             raise StudioError(f"{path.name} exists already: open it, or choose another name", 409)
         if current is not None and digest(current) != opened_hash:
@@ -139,19 +158,25 @@ class Folder:
             )
         if current is None and opened_hash is not None:
             raise StudioError(f"{path.name} was removed since it was opened", 409)
-        original = current.decode("utf-8") if current is not None else None
+        try:
+            original = current.decode("utf-8") if current is not None else None
+        except UnicodeDecodeError:
+            raise StudioError(f"{path.name}: not UTF-8 text; the file is unchanged", 422) from None
         text = edited_text(original, doc) if original is not None else new_text(doc)
         report = self.check(doc)
-        if not report.ok:
-            draft = self.directory / DRAFTS / f"{name}.draft.yaml"
-            draft.parent.mkdir(exist_ok=True)
-            write_atomically(draft, text)
-            return Saved("draft", draft, opened_hash or "", report)
-        write_atomically(path, text)
-        (self.directory / DRAFTS / f"{name}.draft.yaml").unlink(missing_ok=True)
-        side = placement.sidecar(path)
-        if positions is not None and (positions or side.exists()):
-            write_atomically(side, placement.text(positions))
+        try:
+            if not report.ok:
+                draft = self.directory / DRAFTS / f"{name}.draft.yaml"
+                draft.parent.mkdir(exist_ok=True)
+                write_atomically(draft, text)
+                return Saved("draft", draft, opened_hash or "", report)
+            write_atomically(path, text)
+            (self.directory / DRAFTS / f"{name}.draft.yaml").unlink(missing_ok=True)
+            side = placement.sidecar(path)
+            if positions is not None and (positions or side.exists()):
+                write_atomically(side, placement.text(positions))
+        except OSError as error:
+            raise StudioError(f"{path.name}: not saved: {error.strerror or error}", 500) from None
         return Saved("saved", path, digest(text.encode("utf-8")), report)
 
 

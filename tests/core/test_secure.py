@@ -188,6 +188,8 @@ def test_init_refuses_to_overwrite_without_force(tmp_path: Path) -> None:
         ("mini", "tls/127.0.0.1:0", "bad endpoint"),
         ("mini", "tls/127.0.0.1:70000", "bad endpoint"),
         ("mini", "tls/127.0.0.1", "bad endpoint"),
+        ("mini\n", secure.DEFAULT_LISTEN, "bad robot id"),
+        ("mini", "tls/127.0.0.1:7447\n", "bad endpoint"),
     ],
 )
 def test_bad_input_is_refused_before_anything_is_written(

@@ -98,6 +98,13 @@ def test_a_foreign_host_a_missing_token_and_a_foreign_origin_are_refused(studio:
     assert status == 403
     status, _ = studio.request("GET", f"/?token={studio.token}", token=False)
     assert status == 200
+    # the cookie that visit set opens the page and its API without the token in the URL
+    # (the viewer's link to the studio works once the studio's URL was opened)
+    jar = {"Cookie": f"dms-studio-{studio.port}={studio.token}"}
+    assert studio.request("GET", "/", headers=jar, token=False)[0] == 200
+    assert studio.request("GET", "/api/behaviors", headers=jar, token=False)[0] == 200
+    wrong = {"Cookie": f"dms-viewer-{studio.port}={studio.token}"}
+    assert studio.request("GET", "/api/behaviors", headers=wrong, token=False)[0] == 403
     doc = {"name": "quiz", "outcomes": ["done"], "states": {}}
     origin = {"Origin": "http://evil.example"}
     status, text = studio.request("POST", "/api/save", {"doc": doc, "hash": None}, headers=origin)
@@ -277,3 +284,31 @@ def test_a_task_frame_stays_where_its_marker_was_last_seen_in_a_trial(studio: St
     assert again["live"] is False and again["position"] == first["position"]
     status, refused = studio.request("POST", "/api/try/marker", {"seen": "no"})
     assert status == 400 and "seen: true" in refused["error"]
+
+
+@pytest.mark.integration
+def test_a_name_with_a_line_break_or_too_long_is_a_one_line_400(studio: Studio) -> None:
+    before = sorted(path.name for path in studio.folder.iterdir())
+    tail = {"outcomes": ["done"], "states": {"HI": {"speak": {"text": "hi"}}}}
+    for name in ("evil\n", "evil\r\n", "evil\nx", "x" * 5000, "", "Quiz"):
+        status, refused = studio.request("POST", "/api/save", {"doc": {"name": name, **tail}})
+        assert status == 400, (name[:10], refused)
+        assert "name" in refused["error"] and "\n" not in refused["error"], refused
+        assert len(refused["error"]) < 300, refused
+    for path in ("evil%0A", "evil%0D%0A", "a" * 5000, "quiz%0A"):
+        status, refused = studio.request("GET", f"/api/behaviors/{path}")
+        assert status == 400, (path[:10], refused)
+        assert "\n" not in refused["error"], refused
+    status, text = studio.request("POST", "/api/try/start", {"doc": tail, "seed": "abc"})
+    assert status == 400 and "seed" in text["error"], text
+    assert sorted(path.name for path in studio.folder.iterdir()) == before
+    status, names = studio.request("GET", "/api/behaviors")
+    assert status == 200 and all("\n" not in name for name in names["names"])
+
+
+@pytest.mark.integration
+def test_a_behavior_that_is_not_yaml_is_refused_in_one_line(studio: Studio) -> None:
+    (studio.folder / "broken.yaml").write_text("name: broken\nstates: [a, {b: \n  - c\n")
+    status, refused = studio.request("GET", "/api/behaviors/broken")
+    assert status == 422 and "not readable YAML" in refused["error"], refused
+    assert "\n" not in refused["error"], refused
