@@ -79,8 +79,19 @@ def state_at(page: Any, path: str) -> tuple[float, float]:
     return float(x), float(y)
 
 
+def box_of(page: Any, selector: str) -> dict[str, float]:
+    """Where an element is on the page; the canvas is drawn anew after each check, so an
+    element measured as it is replaced is measured again (its copy is at the same place)."""
+    for _ in range(20):
+        page.locator(selector).wait_for()
+        found = page.locator(selector).bounding_box()
+        if found is not None:
+            return dict(found)
+    raise AssertionError(f"{selector} is never on the page long enough to be measured")
+
+
 def mouse_drag(page: Any, selector: str, dx: float, dy: float) -> None:
-    box = page.locator(selector).bounding_box()
+    box = box_of(page, selector)
     x, y = box["x"] + 30, box["y"] + 12
     page.mouse.move(x, y)
     page.mouse.down()
@@ -90,10 +101,10 @@ def mouse_drag(page: Any, selector: str, dx: float, dy: float) -> None:
 
 def drag_to(page: Any, source: str, target: str) -> None:
     """Press at the centre of ``source``, move over ``target`` and let go."""
-    box = page.locator(source).bounding_box()
+    box = box_of(page, source)
     page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
     page.mouse.down()
-    to = page.locator(target).bounding_box()
+    to = box_of(page, target)
     page.mouse.move(to["x"] + to["width"] / 2, to["y"] + to["height"] / 2, steps=6)
     page.mouse.up()
 
@@ -216,8 +227,8 @@ def test_several_states_move_and_go_together_and_quick_drags_are_kept(
         page.click('#palette button[data-block="speak"]')
     page.wait_for_selector('.state[data-path="SPEAK_3"]')
     for name in ("SPEAK", "SPEAK_2", "SPEAK_3"):  # every new state is in view
-        box = page.locator(f'.state[data-path="{name}"] > rect').bounding_box()
-        canvas = page.locator("#canvas").bounding_box()
+        box = box_of(page, f'.state[data-path="{name}"] > rect')
+        canvas = box_of(page, "#canvas")
         assert canvas["x"] <= box["x"] and box["x"] + box["width"] <= canvas["x"] + canvas["width"]
 
     # three transitions drawn one after the other, without waiting for the checks
@@ -242,6 +253,17 @@ def test_several_states_move_and_go_together_and_quick_drags_are_kept(
     moved2, moved3 = state_at(page, "SPEAK_2"), state_at(page, "SPEAK_3")
     assert moved2[1] - two[1] == pytest.approx(moved3[1] - three[1], abs=1)
     assert state_at(page, "SPEAK") == one
+
+    # copied and pasted together: the transition between them goes to the copy
+    page.keyboard.press("Control+c")
+    page.keyboard.press("Control+v")
+    page.wait_for_selector('.edge[data-from="SPEAK_2_2"][data-to="SPEAK_3_2"]')
+    assert page.get_attribute("body", "data-selected") == "2"
+    page.click("#undo-button")
+    page.wait_for_selector('.state[data-path="SPEAK_2_2"]', state="detached")
+    page.click('.state[data-path="SPEAK_2"] > rect')
+    page.click('.state[data-path="SPEAK_3"] > rect', modifiers=["Shift"])
+    page.wait_for_selector("body[data-selected='2']")
 
     page.keyboard.press("Delete")
     page.wait_for_selector('.state[data-path="SPEAK_3"]', state="detached")

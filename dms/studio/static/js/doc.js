@@ -341,13 +341,35 @@ export class Doc {
   }
 
   paste(parent, name, state) {
-    const copy = JSON.parse(JSON.stringify(state));
-    const siblings = this.statesOf(parent) || {};
-    const transitions = copy.transitions || {};
-    const ends = this.containerOutcomes(parent);
-    for (const [outcome, target] of Object.entries(transitions)) {
-      if (!(target in siblings) && !ends.includes(target)) delete transitions[outcome];
+    return this.pasteMany(parent, [{ name, state }])[0];
+  }
+
+  // Copies of states (items: [{name, state}]) in the container at parent, one step: a
+  // transition between two of them goes to the other's copy, one to a state or an end
+  // of the container stays, any other is dropped. The new paths, in order.
+  pasteMany(parent, items) {
+    if (childKey(this.containerKind(parent)) === "state") {
+      // an iterator or a guard holds one state: the first copy takes the place
+      return [this.addState(parent, this.uniqueName(parent, items[0].name), JSON.parse(JSON.stringify(items[0].state)))];
     }
-    return this.addState(parent, this.uniqueName(parent, name), copy);
+    return this.change(() => {
+      const siblings = this.statesOf(parent, true);
+      const ends = this.containerOutcomes(parent);
+      const renamed = {};
+      for (const { name } of items) {
+        renamed[name] = this.uniqueName(parent, name);
+        siblings[renamed[name]] = null; // taken, so that the next copy gets another name
+      }
+      return items.map(({ name, state }) => {
+        const copy = JSON.parse(JSON.stringify(state));
+        const transitions = copy.transitions || {};
+        for (const [outcome, target] of Object.entries(transitions)) {
+          if (target in renamed) transitions[outcome] = renamed[target];
+          else if (!(target in siblings) && !ends.includes(target)) delete transitions[outcome];
+        }
+        siblings[renamed[name]] = copy;
+        return join(parent, renamed[name]);
+      });
+    });
   }
 }

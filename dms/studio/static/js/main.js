@@ -154,12 +154,16 @@ function act(action, path) {
   } else if (action === "delete" && path) {
     app.doc.deleteState(path);
     select(null);
-  } else if (action === "copy" && path) {
-    app.clipboard = { name: nameOf(path), state: JSON.parse(JSON.stringify(app.doc.state(path))) };
-    status(`copied ${nameOf(path)}`);
+  } else if (action === "copy" && canvas.selection.size) {
+    // the selected states of one container (those of the first one's, if several)
+    const chosen = [...canvas.selection].filter((one) => parentOf(one) === parentOf([...canvas.selection][0]));
+    app.clipboard = chosen.map((one) => ({ name: nameOf(one), state: JSON.parse(JSON.stringify(app.doc.state(one))) }));
+    status(`copied ${chosen.map(nameOf).join(", ")}`);
   } else if (action === "paste" && app.clipboard) {
     const parent = path ? (app.doc.isContainer(path) ? path : parentOf(path)) : "";
-    select(app.doc.paste(parent, app.clipboard.name, app.clipboard.state));
+    const pasted = app.doc.pasteMany(parent, app.clipboard);
+    selectMany(pasted);
+    if (pasted.length === 1) select(pasted[0]);
   } else if (action === "run-state" && path) {
     trial.runState();
   }
