@@ -241,7 +241,8 @@ function rerenderKeepingFocus() {
   const active = document.activeElement;
   const id = active && active.id;
   const caret = active && "selectionStart" in active ? [active.selectionStart, active.selectionEnd] : null;
-  props.render(app.selected);
+  if (canvas.selection.size > 1) props.renderMany([...canvas.selection]);
+  else props.render(app.selected);
   const again = id && document.getElementById(id);
   if (!again) return;
   again.focus();
