@@ -125,7 +125,14 @@ class Folder:
         except FileNotFoundError:
             return {"disk": "", "mine": new_text(doc), "hash": None}
         disk = data.decode("utf-8", errors="replace")
-        return {"disk": disk, "mine": edited_text(disk, doc), "hash": digest(data)}
+        try:
+            mine = edited_text(disk, doc)
+        except Exception as error:  # ruamel's errors share no base but Exception
+            first = (
+                str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
+            )
+            raise StudioError(f"{path.name}: not readable YAML on disk: {first}", 422) from None
+        return {"disk": disk, "mine": mine, "hash": digest(data)}
 
     def check(self, doc: Mapping[str, Any]) -> Report:
         name = str(doc.get("name", ""))

@@ -249,7 +249,11 @@ def test_the_simulated_mini_is_posed_by_hand_within_its_limits(studio: Studio) -
         status, refused = studio.request("POST", "/api/robot/pose", {"joints": joints})
         assert status == 400 and wrong in refused["error"], refused
     status, compared = studio.request("POST", "/api/compare", {"doc": {"name": "Bad Name"}})
-    assert status == 400 and "lower-case letters" in compared["error"]
+    assert status == 400 and "name" in compared["error"], compared
+    (studio.folder / "broken.yaml").write_text("name: broken\nstates: [a, {b: \n  - c\n")
+    status, compared = studio.request("POST", "/api/compare", {"doc": {"name": "broken"}})
+    assert status == 422 and "broken.yaml: not readable YAML on disk" in compared["error"]
+    assert "\n" not in compared["error"], compared
 
 
 @pytest.mark.integration
