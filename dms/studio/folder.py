@@ -169,7 +169,10 @@ class Folder:
             original = current.decode("utf-8") if current is not None else None
         except UnicodeDecodeError:
             raise StudioError(f"{path.name}: not UTF-8 text; the file is unchanged", 422) from None
-        text = edited_text(original, doc) if original is not None else new_text(doc)
+        try:
+            text = edited_text(original, doc) if original is not None else new_text(doc)
+        except Exception as error:  # ruamel's errors share no base but Exception
+            raise StudioError(f"{path.name}: not readable YAML on disk: {error}", 422) from None
         report = self.check(doc)
         try:
             if not report.ok:

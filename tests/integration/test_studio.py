@@ -9,6 +9,7 @@ The page itself is driven in Chromium by test_studio_page.py.
 
 from __future__ import annotations
 
+import hashlib
 import http.client
 import json
 import shutil
@@ -254,6 +255,12 @@ def test_the_simulated_mini_is_posed_by_hand_within_its_limits(studio: Studio) -
     status, compared = studio.request("POST", "/api/compare", {"doc": {"name": "broken"}})
     assert status == 422 and "broken.yaml: not readable YAML on disk" in compared["error"]
     assert "\n" not in compared["error"], compared
+    broken = (studio.folder / "broken.yaml").read_bytes()
+    doc = {"name": "broken", "outcomes": ["done"], "states": {"A": {"wait": {}}}}
+    digest = hashlib.sha256(broken).hexdigest()
+    status, refused = studio.request("POST", "/api/save", {"doc": doc, "hash": digest})
+    assert status == 422 and "not readable YAML on disk" in refused["error"], refused
+    assert (studio.folder / "broken.yaml").read_bytes() == broken
 
 
 @pytest.mark.integration
