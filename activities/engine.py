@@ -43,6 +43,7 @@ from dms.kernel.yamlfile import load_plain
 
 if TYPE_CHECKING:
     from activities.context import ActivityContext
+    from activities.task_frames import TaskFrames
 
 Event = Speech | ScreenChoice | Touch
 PREEMPTED = "preempted"
@@ -114,6 +115,8 @@ class Runtime:
         self.redirect: str | None = None
         self.on_enter: Callable[[Node], None] | None = None
         """Called when a state is entered (the stepper and tests listen)."""
+        self.task_frames: TaskFrames | None = None
+        """The behavior's task frames (``frames:``), with their last known places."""
         self.epoch = 0
         """Counts the changes of any state's status or of a machine's current state, and
         what reaches a state from outside (a preemption request, a pause or resume, an

@@ -30,6 +30,7 @@ from activities.engine import Io, Node, Runtime, clear_content_cache
 from activities.errors import BehaviorError, UnknownBehavior
 from activities.gaze import GazeKeeper
 from activities.spec import BehaviorSpec, StateSpec, check_references, parse_file
+from activities.task_frames import TaskFrame, TaskFrames
 
 PACKAGE_DIR = Path(__file__).parent
 BEHAVIORS_DIR = PACKAGE_DIR / "behaviors"
@@ -210,10 +211,25 @@ class BehaviorLibrary:
         """A new, not yet started activity of behavior ``name``."""
         spec = self.spec(name)
         runtime = Runtime(ctx, args or {}, self.content_dirs())
+        runtime.task_frames = TaskFrames(self._task_frames(spec))
         root = self.build_root(spec, runtime)
         attend = spec.attention()
         gaze = None if attend is None else GazeKeeper(ctx, attend.frame, attend.settings())
         return Activity(name, root, runtime, gaze)
+
+    def _task_frames(self, spec: BehaviorSpec) -> dict[str, TaskFrame]:
+        """The task frames of ``spec`` and of the behaviors it runs as states (its own
+        win): they share one runtime."""
+        frames: dict[str, TaskFrame] = {}
+        seen, todo = {spec.name}, list(spec.references())
+        while todo:
+            name = todo.pop()
+            if name in seen or name not in self._specs:
+                continue
+            seen.add(name)
+            frames.update(self._specs[name].frames)
+            todo.extend(self._specs[name].references())
+        return {**frames, **spec.frames}
 
     def build_root(self, spec: BehaviorSpec, runtime: Runtime) -> Node:
         return self._build(spec.root, spec.name, runtime)

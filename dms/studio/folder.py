@@ -5,7 +5,8 @@ sends back the hash it got with the open), writes through a temporary file and a
 rename (a reader never sees half a file), and writes a behavior that does not load
 only as a draft: ``drafts/NAME.draft.yaml`` under the folder, never over the file the
 daemon runs. Drafts live in a subfolder because the daemon loads every ``*.yaml`` of
-the folder itself and refuses the whole folder when one of them is wrong.
+the folder itself and refuses the whole folder when one of them is wrong. The states
+placed by hand are kept beside the file (:mod:`dms.studio.placement`), never in it.
 """
 
 from __future__ import annotations
@@ -19,6 +20,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
+from activities.checks import content_shapes
+from activities.library import content_dirs
+from dms.studio import placement
 from dms.studio.check import Report, check_document, folder_specs
 from dms.studio.errors import StudioError
 from dms.studio.roundtrip import edited_text, load, new_text, to_plain
@@ -103,14 +107,48 @@ class Folder:
             raise StudioError(f"{path.name}: not readable YAML: {error}", 422) from None
         if not isinstance(doc, dict):
             raise StudioError(f"{path.name}: not a behavior (a mapping)", 422)
-        return {"name": name, "doc": doc, "hash": digest(data)}
+        positions, note = placement.read(path)
+        return {
+            "name": name,
+            "doc": doc,
+            "hash": digest(data),
+            "layout": placement.to_json(positions),
+            "layout_note": note,
+        }
+
+    def compare(self, doc: Mapping[str, Any]) -> dict[str, Any]:
+        """``{disk, mine, hash}``: the file as it is on disk, what saving ``doc`` over it
+        would write, and the file's hash now (to overwrite it knowingly)."""
+        path = self.path(str(doc.get("name", "")))
+        try:
+            data = path.read_bytes()
+        except FileNotFoundError:
+            return {"disk": "", "mine": new_text(doc), "hash": None}
+        disk = data.decode("utf-8", errors="replace")
+        try:
+            mine = edited_text(disk, doc)
+        except Exception as error:  # ruamel's errors share no base but Exception
+            first = (
+                str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
+            )
+            raise StudioError(f"{path.name}: not readable YAML on disk: {first}", 422) from None
+        return {"disk": disk, "mine": mine, "hash": digest(data)}
 
     def check(self, doc: Mapping[str, Any]) -> Report:
-        return check_document(doc, self.others(str(doc.get("name", ""))))
+        name = str(doc.get("name", ""))
+        content = content_shapes(content_dirs(self.directory))
+        return check_document(doc, self.others(name), content)
 
-    def save(self, doc: Mapping[str, Any], opened_hash: str | None) -> Saved:
+    def save(
+        self,
+        doc: Mapping[str, Any],
+        opened_hash: str | None,
+        positions: placement.Positions | None = None,
+    ) -> Saved:
         """Write ``doc`` as its file (its name is the file's), or as a draft if it does
-        not load. ``opened_hash``: the file's hash when it was opened, None for a new one."""
+        not load. ``opened_hash``: the file's hash when it was opened, None for a new one.
+        ``positions``: the states placed by hand, written beside the file once it is
+        saved (None: the sidecar is left as it is)."""
         name = str(doc.get("name", ""))
         path = self.path(name)
         try:
@@ -131,7 +169,10 @@ class Folder:
             original = current.decode("utf-8") if current is not None else None
         except UnicodeDecodeError:
             raise StudioError(f"{path.name}: not UTF-8 text; the file is unchanged", 422) from None
-        text = edited_text(original, doc) if original is not None else new_text(doc)
+        try:
+            text = edited_text(original, doc) if original is not None else new_text(doc)
+        except Exception as error:  # ruamel's errors share no base but Exception
+            raise StudioError(f"{path.name}: not readable YAML on disk: {error}", 422) from None
         report = self.check(doc)
         try:
             if not report.ok:
@@ -141,6 +182,9 @@ class Folder:
                 return Saved("draft", draft, opened_hash or "", report)
             write_atomically(path, text)
             (self.directory / DRAFTS / f"{name}.draft.yaml").unlink(missing_ok=True)
+            side = placement.sidecar(path)
+            if positions is not None and (positions or side.exists()):
+                write_atomically(side, placement.text(positions))
         except OSError as error:
             raise StudioError(f"{path.name}: not saved: {error.strerror or error}", 500) from None
         return Saved("saved", path, digest(text.encode("utf-8")), report)
