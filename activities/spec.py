@@ -44,6 +44,7 @@ from activities.blocks import (
     BlockParams,
     param_problems,
 )
+from activities.declaration import declaration_problems
 from activities.engine import PREEMPTED
 from activities.errors import BehaviorError
 from activities.names import frame_problem, value_problems
@@ -56,7 +57,16 @@ MACHINES = ("state_machine", "sequence")
 GROUPS = (*MACHINES, "concurrence")
 """Containers with a ``states`` mapping."""
 STATE_KEYS = ("transitions", "input_keys", "output_keys", "remapping")
-TOP_KEYS = ("name", "description", "attend", "outcomes", "initial", "userdata", "states")
+TOP_KEYS = (
+    "name",
+    "description",
+    "activity",
+    "attend",
+    "outcomes",
+    "initial",
+    "userdata",
+    "states",
+)
 
 
 class StateMachineParams(BlockParams):
@@ -212,6 +222,9 @@ class BehaviorSpec:
     attend: str | dict[str, Any] | None = None
     """``attend:`` at the top as written: the gaze kept on a frame while the behavior
     runs, a frame's name or :class:`activities.blocks.AttendParams`."""
+    activity: dict[str, Any] | None = None
+    """``activity:`` as written, checked: the behavior declared an activity
+    (:mod:`activities.declaration`); None: a behavior only."""
 
     @property
     def outcomes(self) -> list[str]:
@@ -228,6 +241,8 @@ class BehaviorSpec:
         out: dict[str, Any] = {"name": self.name}
         if "description" in self.present:
             out["description"] = self.description
+        if self.activity is not None:
+            out["activity"] = self.activity
         if self.attend is not None:
             out["attend"] = self.attend
         out["outcomes"] = self.root.params.get("outcomes")
@@ -295,6 +310,7 @@ def parse_text(text: str, where: str, path: Path | None = None) -> BehaviorSpec:
     if description is not None and not isinstance(description, str):
         checker.problem(_line(data, "description"), "", "description must be a string")
     attend = _parse_attend(checker, data)
+    activity = _parse_activity(checker, data, name)
     body = {key: data[key] for key in ("outcomes", "initial", "userdata", "states") if key in data}
     located = Located(body)
     located.line, located.key_lines = data.line, data.key_lines
@@ -307,7 +323,18 @@ def parse_text(text: str, where: str, path: Path | None = None) -> BehaviorSpec:
         raise BehaviorError(first + more, checker.problems)
     assert root is not None
     present = tuple(k for k in ("description",) if k in data)
-    return BehaviorSpec(name, root, description, path, present, attend)
+    return BehaviorSpec(name, root, description, path, present, attend, activity)
+
+
+def _parse_activity(checker: _Checker, data: Located, name: str) -> dict[str, Any] | None:
+    """The top ``activity:``, each problem at its line (:mod:`activities.declaration`)."""
+    if "activity" not in data:
+        return None
+    raw = data["activity"]
+    for key, message in declaration_problems(name, raw):
+        at = _line(raw, key) if key is not None and isinstance(raw, Located) else 0
+        checker.problem(at or _line(data, "activity"), "", message)
+    return dict(plain(raw)) if isinstance(raw, dict) else None
 
 
 def _parse_attend(checker: _Checker, data: Located) -> str | dict[str, Any] | None:

@@ -411,7 +411,7 @@ def build_request(action: str, activity: str | None, by: str) -> dict[str, Any]:
 
     from pydantic import ValidationError
 
-    from dms.kernel.activity_names import ACTIVITIES
+    from dms.kernel.activity_names import ACTIVITIES, NAME_PATTERN, SHIPPED, TWIN_CUTOFF
     from dms.kernel.messages import Request
 
     if action == "start" and activity is None:
@@ -419,13 +419,17 @@ def build_request(action: str, activity: str | None, by: str) -> dict[str, Any]:
     if action in ("pause", "resume", "reload") and activity is not None:
         raise ConfigError(f"{action} takes no activity (it acts on the one running)")
     if activity is not None and activity not in ACTIVITIES:
-        close = get_close_matches(activity, ACTIVITIES, n=1)
-        hint = f"; did you mean {close[0]}?" if close else f"; one of {', '.join(ACTIVITIES)}"
-        raise ConfigError(f"unknown activity {activity!r}{hint}")
+        # A near-twin of a shipped name is a typo (the loader refuses to declare one); any
+        # other well-formed name may be one the daemon's behaviors folder declares: it
+        # answers for it.
+        close = get_close_matches(activity, SHIPPED, n=1, cutoff=TWIN_CUTOFF)
+        if close or not NAME_PATTERN.match(activity):
+            hint = f"; did you mean {close[0]}?" if close else f"; one of {', '.join(ACTIVITIES)}"
+            raise ConfigError(f"unknown activity {activity!r}{hint}")
     wire = "reload_rules" if action == "reload" else action
     payload = {"action": wire, "activity": activity, "by": by}
-    try:
-        Request.model_validate(payload)
+    try:  # an activity unknown here is the daemon's to check
+        Request.model_validate(payload if activity in ACTIVITIES else {**payload, "activity": None})
     except ValidationError as error:
         first = error.errors(include_url=False)[0]
         where = ".".join(str(part) for part in first["loc"])
@@ -499,6 +503,10 @@ class RequestAnswer:
         error, where = str(report.get("error", "")), report.get("key")
         wire = "reload_rules" if self.action == "reload" else self.action
         if where == keys.REQUEST and error.startswith(f"{wire} by {self.by}:"):
+            raise Refused(f"refused: {error.split(':', 1)[1].strip()}")
+        if where == keys.REQUEST and error.startswith(
+            f"activity: unknown activity {self.activity!r}"
+        ):
             raise Refused(f"refused: {error.split(':', 1)[1].strip()}")
         if self.action == "reload" and where in RELOAD_ERROR_KEYS:
             raise Refused(f"reload kept the old version: {where}: {error}")
