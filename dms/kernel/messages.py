@@ -280,7 +280,7 @@ class MotivationSnapshot(_OmitsUnset):
     viewer's chart."""
 
 
-InputStatus = Literal["ok", "stale", "missing"]
+InputStatus = Literal["ok", "stale", "missing", "not_published"]
 Mode = Literal["motivation", "autonomous", "user_choice", "hybrid"]
 
 
