@@ -51,6 +51,67 @@ KNOWN_VALUES: Mapping[str, tuple[str, ...]] = {
 """The values the preference model learnt from, per text feature."""
 
 
+def declaration_schema() -> dict[str, Any]:
+    """The JSON Schema of ``activity:`` (the published behavior schema's, the studio's
+    Activity form's): what :func:`declaration_problems` accepts, but the name's checks."""
+    values = {"type": "array", "minItems": 1, "maxItems": MAX_VALUES}
+    features: dict[str, Any] = {
+        name: {**values, "items": {"enum": list(known)}} for name, known in KNOWN_VALUES.items()
+    }
+    features["age"] = {
+        "type": "array",
+        "items": {"type": "integer", "minimum": 0, "maximum": 120},
+        "minItems": 2,
+        "maxItems": 2,
+        "description": "[youngest, oldest], whole years.",
+    }
+    features["lives_alone"] = {**values, "items": {"type": "boolean"}}
+    return {
+        "type": "object",
+        "description": "Declares the behavior an activity: the robot offers it in menus, "
+        "starts it on request and chooses it by itself.",
+        "properties": {
+            "manager": {
+                "enum": [m.value for m in DECLARABLE_MANAGERS],
+                "description": "The group it runs in; an entertainment activity is chosen "
+                "for a user by her preferences.",
+            },
+            "menu": {
+                "type": "string",
+                "minLength": 1,
+                "maxLength": MAX_MENU_CHARS,
+                "description": "The name shown on the menu.",
+            },
+            "picture": {
+                "type": "string",
+                "minLength": 1,
+                "description": "An image file shown beside it on the menu.",
+            },
+            "expected_s": {
+                "type": "number",
+                "exclusiveMinimum": 0,
+                "maximum": MAX_EXPECTED_S,
+                "description": "How long it usually lasts, in seconds.",
+            },
+            "features": {
+                "type": "object",
+                "properties": features,
+                "additionalProperties": False,
+                "description": "The user features that suggest someone likes it: the "
+                "preference model's first guess.",
+            },
+            "pausable": {
+                "type": "boolean",
+                "default": True,
+                "description": "false: a pause (a reminder, the shoulder, a request) stops "
+                "it instead.",
+            },
+        },
+        "required": ["manager", "menu"],
+        "additionalProperties": False,
+    }
+
+
 def _manager_problem(raw: object) -> str | None:
     names = ", ".join(m.value for m in DECLARABLE_MANAGERS)
     if isinstance(raw, str) and raw in {m.value for m in DECLARABLE_MANAGERS}:

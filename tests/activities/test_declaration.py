@@ -192,3 +192,18 @@ def test_a_declared_activity_that_may_not_be_paused_is_stopped_instead(
         "it cannot be paused: stopped",
     )
     assert manager.tick(bench.now).status is ManagerStatus.IDLE
+
+
+def test_the_published_schema_takes_the_docs_example_and_refuses_a_wrong_declaration() -> None:
+    import json
+
+    import yaml
+    from jsonschema import Draft202012Validator
+
+    from activities.schema import SCHEMA_PATH
+
+    validator = Draft202012Validator(json.loads(SCHEMA_PATH.read_text()))
+    example = yaml.safe_load(docs_example())
+    assert not list(validator.iter_errors(example))
+    example["activity"]["features"] = {"hobby": ["music"]}
+    assert list(validator.iter_errors(example))
