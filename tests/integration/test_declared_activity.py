@@ -119,7 +119,9 @@ def test_a_declared_activity_starts_on_request_is_offered_and_survives_its_remov
         assert typo.returncode == 1
         assert "unknown activity 'greet_and_asc'; did you mean greet_and_ask?" in typo.stderr
         # Ann asks for it over Zenoh, opens the menu
+        states = Collector(session, "robots/mini/dms/state")
         put(session, "perception/user", ANN_READY)
+        states.wait_for(lambda s: (s["user"] or {}).get("id") == "ann")  # her session began
         mark = decisions.mark()
         put(session, "request", {"action": "start", "activity": "menu", "by": "ann"})
         _start_decision(decisions, "menu", mark)
@@ -138,9 +140,10 @@ def test_a_declared_activity_starts_on_request_is_offered_and_survives_its_remov
         decisions.wait_for(lambda d: d["action"] == "ask", start=mark)
         put(session, "perception/screen", {"choice": "stop"})
         decisions.wait_for(lambda d: d["action"] == "cancel" and d["activity"] == "greet_and_ask")
+        seen = states.mark()
         put(session, "perception/user", {"present": False})
-        decisions.wait_for(lambda d: d["reason"] == "user_left", timeout=20)
-        assert daemon.terminate() == 0
+        states.wait_for(lambda s: s["user"] is None, start=seen)  # her session ended
+        assert daemon.terminate() == 0  # flushes the store
         assert (
             "greet_and_ask"
             in json.loads(dms("users", "show", "ann", "--db", daemon.db).stdout)["scores"]
@@ -208,3 +211,27 @@ def test_a_visitor_who_likes_it_gets_it_proposed_by_the_preference_chooser(
     # learnt from her stops and ratings: the robot's favourite pick for her, once it knows
     assert max(set(late), key=late.count) == "greet_and_ask", late
     assert "greet_and_ask" in chosen
+
+
+def test_an_activity_declared_while_the_daemon_runs_is_in_force_after_a_reload(
+    tmp_path: Path,
+) -> None:
+    folder = behaviors_folder(tmp_path, declared=None)
+    daemon = daemon_for(tmp_path, folder)
+    session = client_session(daemon.port)
+    try:
+        daemon.start(session)
+        connect = ("--connect", f"tcp/127.0.0.1:{daemon.port}")
+        before = dms("request", "start", "greet_and_ask", *connect)
+        assert before.returncode == 1
+        assert "refused: unknown activity 'greet_and_ask'" in before.stderr, before.stderr
+        (folder / "greet_and_ask.yaml").write_text(GREET_AND_ASK, encoding="utf-8")
+        reloaded = dms("request", "reload", *connect)
+        assert reloaded.returncode == 0, reloaded.stderr
+        started = dms("request", "start", "greet_and_ask", *connect)
+        assert started.returncode == 0, started.stderr
+        assert " start    greet_and_ask [user_request" in started.stdout
+        assert daemon.terminate() == 0
+    finally:
+        daemon.kill()
+        session.close()
