@@ -276,11 +276,6 @@ def first_guess(entry: ActivityEntry, features: Features) -> float:
     return FIRST_GUESS_LOW + (FIRST_GUESS_HIGH - FIRST_GUESS_LOW) * share
 
 
-def choice_names() -> tuple[str, ...]:
-    """What the chooser chooses among: the entertainment activities in force."""
-    return current().entertainment
-
-
 @cache
 def _seed_model() -> PreferenceModel:
     return PreferenceModel.fit(load_seed())
@@ -453,12 +448,15 @@ class ActivityChooser:
             training.join(timeout)
         return training is None or not training.is_alive()
 
-    def priors(self, model: PreferenceModel, profile: Profile) -> dict[str, float]:
-        """Per entertainment activity in force, the first guess of the user's liking: the
-        model's prediction from features, a declared activity's :func:`first_guess`."""
+    def priors(
+        self, model: PreferenceModel, profile: Profile, catalogue: Catalogue | None = None
+    ) -> dict[str, float]:
+        """Per entertainment activity of ``catalogue`` (default: the one in force), the
+        first guess of the user's liking: the model's prediction from features, a
+        declared activity's :func:`first_guess`."""
         features = profile.features()
         prior = model.win_scores(features) or dict.fromkeys(ACTIVITIES, 0.5)
-        catalogue = current()
+        catalogue = catalogue or current()
         for entry in catalogue.declared:
             if entry.name in catalogue.entertainment:
                 prior[entry.name] = first_guess(entry, features)
@@ -477,7 +475,7 @@ class ActivityChooser:
         model, last, catalogue = self.model, self._last_beliefs, current()
         if last is not None and last[0] is profile and last[1] is model and last[3] is catalogue:
             return dict(last[2])
-        prior = self.priors(model, profile)
+        prior = self.priors(model, profile, catalogue)
         out = {}
         for name in prior:
             score = profile.scores.get(name)
@@ -510,15 +508,15 @@ class ActivityChooser:
         """
         # ``profile`` is the controller's cached one, kept current by the store's writer:
         # the tick never reads the database here.
-        every = choice_names()
-        names = [name for name in every if name not in exclude] or list(every)
+        beliefs = self.beliefs(profile)  # one catalogue for the whole choice, even mid-reload
+        every = list(beliefs)
+        names = [name for name in every if name not in exclude] or every
         untried = [name for name in names if name not in profile.scores]
         coin = rng.random() if untried else None  # the novelty coin, only while one is untried
         if coin is not None and coin < NOVELTY_PROBABILITY:
             pick = rng.choice(untried)
             self.last_draw = ChoiceDraw(pick, tuple(names), tuple(untried), coin, None)
             return pick
-        beliefs = self.beliefs(profile)
         draws = {name: rng.betavariate(*beliefs[name]) for name in names}
         pick = max(names, key=lambda name: draws[name])
         self.last_draw = ChoiceDraw(pick, tuple(names), tuple(untried), coin, draws)
