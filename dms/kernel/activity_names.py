@@ -66,6 +66,9 @@ DECLARABLE_MANAGERS = (
 """The managers a declared activity may belong to (the general manager's activities,
 notifications, instructions and the menu, are the robot's own)."""
 
+MAX_NAME_CHARS = 40
+MAX_SHOWN_CHARS = 120
+"""How much of an unknown name a refusal quotes."""
 NAME_PATTERN = re.compile(r"^[a-z][a-z0-9_]{0,39}$")
 """A declared activity's name: what a request, a rule and a stored row can carry."""
 
@@ -91,7 +94,7 @@ class ActivityEntry:
     """An image file shown beside it on the menu."""
     expected_s: float | None = None
     """How long it usually lasts, in seconds (None: not said)."""
-    features: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    features: Mapping[str, tuple[str | int | bool, ...]] = field(default_factory=dict)
     """The user features that make a first guess that someone likes it: a feature's name
     (one the preference model learns from) and the values that suggest it."""
     pausable: bool = True
@@ -120,7 +123,11 @@ class Catalogue:
         return self.entries.get(name)
 
     def unknown(self, name: str) -> str:
-        """The one line saying ``name`` is no activity here, with the nearest one."""
+        """The one line saying ``name`` is no activity here, with the nearest one (a name
+        over :data:`MAX_SHOWN_CHARS` is cut, and not compared: it is no typo)."""
+        if len(name) > MAX_SHOWN_CHARS:
+            cut = name[:MAX_SHOWN_CHARS]
+            return f"unknown activity {cut!r}... (names are at most {MAX_NAME_CHARS} characters)"
         close = get_close_matches(name, list(self.managers), n=1)
         hint = f"; did you mean {close[0]}?" if close else f"; one of {', '.join(self.managers)}"
         return f"unknown activity {name!r}{hint}"

@@ -167,3 +167,13 @@ def test_a_params_name_and_value_are_bounded_in_size(key: str) -> None:
     ]:
         with pytest.raises(InputRejected, match=fragment):
             parse_input(key, json.dumps(payload).encode())
+
+
+def test_an_unknown_activity_is_named_with_the_nearest_and_a_long_one_cut() -> None:
+    with pytest.raises(InputRejected) as typo:
+        parse_input(keys.REQUEST, b'{"action": "start", "activity": "jokez"}')
+    assert str(typo.value) == "activity: unknown activity 'jokez'; did you mean jokes?"
+    long = json.dumps({"action": "start", "activity": "jokes" * 2000}).encode()
+    with pytest.raises(InputRejected) as cut:
+        parse_input(keys.REQUEST, long)
+    assert len(str(cut.value)) < 220 and "at most 40 characters" in str(cut.value)
