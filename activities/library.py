@@ -26,11 +26,13 @@ from activities.containers import (
     Trigger,
 )
 from activities.context import ActivityContext
+from activities.declaration import count_problem, install_catalogue
 from activities.engine import Io, Node, Runtime, clear_content_cache
 from activities.errors import BehaviorError, UnknownBehavior
 from activities.gaze import GazeKeeper
 from activities.spec import BehaviorSpec, StateSpec, check_references, parse_file
 from activities.task_frames import TaskFrame, TaskFrames
+from dms.kernel.activity_names import Catalogue
 
 PACKAGE_DIR = Path(__file__).parent
 BEHAVIORS_DIR = PACKAGE_DIR / "behaviors"
@@ -71,6 +73,9 @@ def load_specs(directory: Path) -> tuple[dict[str, BehaviorSpec], list[str]]:
         specs[spec.name] = spec
     problems.extend(check_references(specs))
     problems.extend(_placeholder_problems(specs, directory))
+    declared = sum(spec.activity is not None for spec in specs.values())
+    if (too_many := count_problem(declared)) is not None:
+        problems.append(f"{directory}: {too_many}")
     return specs, problems
 
 
@@ -134,6 +139,8 @@ def reload_rules_and_behaviors(
     if rules is not None:
         found.extend(("rules", str(problem)) for problem in rules.reload())
     problems = library.reload()
+    if not problems:
+        library.install_catalogue()
     if problems:
         more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
         found.append(("behaviors", f"{problems[0]}{more}; keeping the previous behaviors"))
@@ -182,6 +189,15 @@ class BehaviorLibrary:
     @property
     def names(self) -> frozenset[str]:
         return frozenset(self._specs)
+
+    def declarations(self) -> dict[str, dict[str, Any]]:
+        """The behaviors declared activities: name, its ``activity:`` as written."""
+        return {n: s.activity for n, s in self._specs.items() if s.activity is not None}
+
+    def install_catalogue(self) -> Catalogue:
+        """Put in force the shipped activities plus the ones this library declares (the
+        daemon and the simulator at start, and after each reload that took)."""
+        return install_catalogue(self.declarations())
 
     def spec(self, name: str) -> BehaviorSpec:
         try:

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from activities.blocks import BLOCKS, AttendParams, BlockParams, accepts_any_string
+from activities.declaration import declaration_schema
 from activities.spec import CONTAINER_PARAMS
 from activities.template import PLACEHOLDER
 
@@ -112,6 +113,7 @@ def json_schema() -> dict[str, Any]:
                     "additionalProperties": False,
                 },
             },
+            "activity": declaration_schema(),
             "outcomes": names,
             "initial": {"type": "string"},
             "userdata": {"type": "object"},

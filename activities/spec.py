@@ -44,6 +44,7 @@ from activities.blocks import (
     BlockParams,
     param_problems,
 )
+from activities.declaration import declaration_problems
 from activities.engine import PREEMPTED
 from activities.errors import BehaviorError
 from activities.names import FRAME_PARAMS, frame_problem, value_problems
@@ -57,7 +58,17 @@ MACHINES = ("state_machine", "sequence")
 GROUPS = (*MACHINES, "concurrence")
 """Containers with a ``states`` mapping."""
 STATE_KEYS = ("transitions", "input_keys", "output_keys", "remapping")
-TOP_KEYS = ("name", "description", "attend", "frames", "outcomes", "initial", "userdata", "states")
+TOP_KEYS = (
+    "name",
+    "description",
+    "activity",
+    "attend",
+    "frames",
+    "outcomes",
+    "initial",
+    "userdata",
+    "states",
+)
 AIMED = ("look_at", "point_at", "gesture")
 """The blocks that may aim at a task frame (they locate their frame each time)."""
 
@@ -217,6 +228,9 @@ class BehaviorSpec:
     runs, a frame's name or :class:`activities.blocks.AttendParams`."""
     frames: dict[str, TaskFrame] = field(default_factory=dict)
     """``frames:`` at the top: the task frames its states may aim at, by name."""
+    activity: dict[str, Any] | None = None
+    """``activity:`` as written, checked: the behavior declared an activity
+    (:mod:`activities.declaration`); None: a behavior only."""
 
     @property
     def outcomes(self) -> list[str]:
@@ -233,6 +247,8 @@ class BehaviorSpec:
         out: dict[str, Any] = {"name": self.name}
         if "description" in self.present:
             out["description"] = self.description
+        if self.activity is not None:
+            out["activity"] = self.activity
         if self.attend is not None:
             out["attend"] = self.attend
         if self.frames:
@@ -310,6 +326,7 @@ def parse_text(text: str, where: str, path: Path | None = None) -> BehaviorSpec:
         at = _line(held, frame_name) if isinstance(held, Located) and frame_name in held else 0
         checker.problem(at or _line(data, "frames"), "", problem)
     checker.task_frames = frozenset(frames)
+    activity = _parse_activity(checker, data, name)
     body = {key: data[key] for key in ("outcomes", "initial", "userdata", "states") if key in data}
     located = Located(body)
     located.line, located.key_lines = data.line, data.key_lines
@@ -322,7 +339,18 @@ def parse_text(text: str, where: str, path: Path | None = None) -> BehaviorSpec:
         raise BehaviorError(first + more, checker.problems)
     assert root is not None
     present = tuple(k for k in ("description",) if k in data)
-    return BehaviorSpec(name, root, description, path, present, attend, frames)
+    return BehaviorSpec(name, root, description, path, present, attend, frames, activity)
+
+
+def _parse_activity(checker: _Checker, data: Located, name: str) -> dict[str, Any] | None:
+    """The top ``activity:``, each problem at its line (:mod:`activities.declaration`)."""
+    if "activity" not in data:
+        return None
+    raw = data["activity"]
+    for key, message in declaration_problems(name, raw):
+        at = _line(raw, key) if key is not None and isinstance(raw, Located) else 0
+        checker.problem(at or _line(data, "activity"), "", message)
+    return dict(plain(raw)) if isinstance(raw, dict) else None
 
 
 def _parse_attend(checker: _Checker, data: Located) -> str | dict[str, Any] | None:

@@ -178,6 +178,7 @@ def build_stack(
         library = BehaviorLibrary.load(settings.behaviors.folder)
     except BehaviorError as error:
         raise ConfigError(f"behaviors: {error}") from None
+    library.install_catalogue()  # the shipped activities and those the folder declares
     rules: LiveRules | None = None
     if settings.rules.files:
         # The rules language (its parser) loads only for a robot that has rules files.

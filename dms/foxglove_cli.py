@@ -64,10 +64,14 @@ def foxglove(
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
     try:  # the port first: a port in use is said before any network wait
-        bridge = FoxgloveBridge(host, port, allow_origin or (), personal_data)
+        bridge = FoxgloveBridge(
+            host, port, allow_origin or (), personal_data, every_robot=robot_id == "*"
+        )
     except (RuntimeError, OSError) as error:
         raise ConfigError(f"--port {port}: {' '.join(str(error).split())}") from None
     try:
+        if robot_id != "*":
+            bridge.advertise(robot_id)
         with ZenohClient("foxglove", config) as client:
             client.subscribe_raw(f"robots/{robot_id}/**", bridge.on_sample)
             typer.echo(

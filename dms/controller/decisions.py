@@ -69,7 +69,7 @@ class DecisionLog:
             time=iso(now),
             action=action,
             activity=activity,
-            manager=manager_of(activity).value if activity in ACTIVITIES else None,
+            manager=manager_of(activity).value if activity and activity in ACTIVITIES else None,
             reason=reason,
             chosen_by=chosen_by,
             detail=detail,

@@ -17,7 +17,7 @@ from dms.config import ControllerSettings
 from dms.controller.decisions import DecisionLog
 from dms.controller.deps import ControllerDeps, Counters
 from dms.controller.state import ActivityFacts
-from dms.kernel.activity_names import ManagerName, manager_of
+from dms.kernel.activity_names import ACTIVITIES, ManagerName, manager_of
 from dms.kernel.messages import (
     ChosenBy,
     Reason,
@@ -103,6 +103,9 @@ class Runner:
                 self.log.decide(
                     "fail", name, "activity_error", chosen_by, "the robot is offline", now
                 )
+            return False
+        if name not in ACTIVITIES:  # removed from the catalogue, still named by a row
+            self.log.decide("fail", name, "activity_error", chosen_by, "no such activity", now)
             return False
         manager = manager_of(name)
         reply = self.managers[manager].start(name, self.context(name), now, args)

@@ -85,7 +85,9 @@ def parse_message(problem: str) -> Message:
     text = found.group("msg")
     param_match = _PARAM.search(text)
     param = param_match.group(1) if param_match else None
-    if param is None and any(word in text for word in _TRANSITION_WORDS):
+    if param is None and text.startswith("activity:"):
+        param = "activity"  # the Activity form's
+    elif param is None and any(word in text for word in _TRANSITION_WORDS):
         param = "transitions"
     head = text.split(":", 1)[0]
     if param is None and not found.group("path") and head in TOP_KEYS:

@@ -3,6 +3,7 @@
 // With nothing selected it shows the behavior's own settings.
 
 import { blockOf, childKey, join, MACHINES, nameOf, parentOf } from "./doc.js";
+import { activityForm } from "./activity.js";
 import { field } from "./fields.js";
 import { keyframesForm, mappingForm, outcomeMapForm, taskFramesForm } from "./forms.js";
 
@@ -72,6 +73,9 @@ export class Props {
       this.fields.initial = initial;
       this.panel.appendChild(initial.element);
     }
+    this.fields.activity = activityForm(doc.data.activity, top.activity || {},
+      (value, typing) => this.handlers.setParam("", "activity", value, typing));
+    this.panel.appendChild(this.fields.activity.element);
     this.addProblems();
   }
 
