@@ -24,6 +24,7 @@ from dms.controller.deps import ControllerDeps, Counters
 from dms.controller.dialogs import Dialogs
 from dms.controller.drives import Drives
 from dms.controller.events import Events
+from dms.controller.requests import Requests
 from dms.controller.running import Runner, Running
 from dms.controller.sessions import Sessions
 from dms.controller.state import TickRecord, UserFacts
@@ -66,9 +67,8 @@ class Controller:
         self.sessions = Sessions(deps, settings, counters)
         self.log = DecisionLog(counters, self.drives, self.sessions.account)
         self.runner = Runner(deps, settings, self.log, counters, self._context)
-        self.dialogs = Dialogs(
-            deps.expression, settings, self.log, counters, self.sessions, self.runner
-        )
+        self.dialogs = Dialogs(deps.expression, settings, self.log, self.sessions, self.runner)
+        requests = Requests()  # the events put requests, the choice takes them
         self.events = Events(
             deps,
             settings,
@@ -77,19 +77,18 @@ class Controller:
             self.sessions,
             self.runner,
             self.dialogs,
+            requests,
             self.reload_rules,
         )
         self.choice = Choice(
             deps,
             settings,
             rng,
-            counters,
-            self.log,
             self.drives,
             self.sessions,
             self.runner,
             self.dialogs,
-            self.events,
+            requests,
             self._rule,
         )
 
@@ -99,7 +98,7 @@ class Controller:
         """Run the decision loop once at ``now``."""
         self._now = now
         self._tick += 1
-        self.counters.ticks += 1
+        self.counters.count_tick()
         self.log.begin(self._tick)
         # Before anything can send a command: its timeouts count on the monotonic clock.
         self.deps.expression.set_monotonic(monotonic)
@@ -182,7 +181,7 @@ class Controller:
                 barrier.run(
                     "shutdown", running.name, runner.cancel, running, "shutdown", now, cleanup=False
                 )
-        runner.current = runner.suspended = None
+        runner.clear()
         for manager in runner.managers.values():
             barrier.run("shutdown", manager.name, manager.stop_winding_down, now)
         session = self.sessions.session
@@ -193,8 +192,8 @@ class Controller:
     # ------------------------------------------------------------------ after a fault
 
     def _drop_dialog(self, now: datetime) -> None:
-        """After a fault in the dialog step: close the dialog, silence it, go on."""
-        self.dialogs.dialog = None
+        """After a fault in the dialog step: close the dialog, silence it, go on (the
+        dialog is closed first thing, even if silencing it fails)."""
         self._barrier.run("dialog/close", None, self.dialogs.end, now)
         running = self.runner.current
         if running is not None and running.paused and self.runner.suspended is not running:
@@ -215,7 +214,7 @@ class Controller:
         running = runner.current
         if running is None:
             return
-        runner.current = None
+        runner.forget(running)
         barrier.run(f"{step}/stop", running.name, runner.managers[running.manager].cancel, now)
         barrier.run(
             f"{step}/stop",
@@ -224,16 +223,13 @@ class Controller:
             f"activity:{running.name}",
             now,
         )
-        self.counters.activity_failures += 1
-        self.log.decide(
-            "fail", running.name, "activity_error", running.chosen_by, f"{step} step failed", now
-        )
+        runner.failed(running, f"{step} step failed", now)
         barrier.run(
             f"{step}/record", running.name, self.sessions.record_activity, running, "failed", now
         )
         if runner.suspended is not None and self.dialogs.dialog is None:
-            suspended, runner.suspended = runner.suspended, None
-            runner.current = suspended
+            suspended = runner.restore()
+            assert suspended is not None
             barrier.run(
                 f"{step}/resume",
                 suspended.name,
@@ -302,7 +298,7 @@ class Controller:
 
     def _record(self, now: datetime, urgent: bool) -> TickRecord:
         decisions = tuple(self.log.decisions)
-        self.counters.decisions += len(decisions)
+        self.counters.count_recorded(len(decisions))
         self._last = record = self.build_record(now, urgent, decisions)
         return record
 
