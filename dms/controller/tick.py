@@ -95,7 +95,11 @@ class Controller:
     # ------------------------------------------------------------------ the tick
 
     def tick(self, now: datetime, monotonic: float, urgent: bool = False) -> TickRecord:
-        """Run the decision loop once at ``now``."""
+        """Run the decision loop once at ``now``: the paper's steps, numbered as the paper
+        numbers them, in the order below."""
+        # Why not the paper's order (1, 2, ... 9): the user is followed (3, 5) and an answer
+        # taken (7) before the cancel reasons (2), so that this very tick acts for the user
+        # now in front and on the answer just given, instead of one tick later.
         self._now = now
         self._tick += 1
         self.counters.count_tick()
@@ -109,28 +113,35 @@ class Controller:
             self.dialogs,
             self.choice,
         )
-        # 1. Read the inputs: stale and missing ones are left out (not considered).
+        # Step 1. Read the inputs: stale and missing ones are left out (not considered).
         snapshot = self.inputs.take(monotonic)
         sessions.see(snapshot, now, monotonic)
-        # Urgent inputs first: answers to a dialog or to the running activity, the
-        # shoulder's "continue or stop?", requests for an activity by name.
+        # Step 1, the urgent inputs first: answers to a dialog or to the running activity,
+        # the shoulder's "continue or stop?", requests for an activity by name (queued
+        # for step 2's reason (b) or for step 4's and 6's choice).
         self.events.handle(snapshot, now)
+        # Step 1, the motivation's half: the drives stepped with what is perceived.
         barrier.run("motivation", sessions.user, self._motivate, snapshot, now, monotonic)
+        # Step 1, the robot's half: its feedback, the frames, the robot link.
         barrier.run("robot", None, self._follow_robot, snapshot, now, monotonic)
         if self.deps.profiles is not None:
             barrier.run("memory", None, self.deps.profiles.retry, now)
-        # 3, 5. Is a user ready? A session begins (the profile loaded or created) or ends.
+        # Steps 3 and 5. Is a user ready? A session begins (the profile loaded or created)
+        # or ends (what runs for the user who left is cut).
         barrier.run("user", sessions.user, choice.follow_user, now)
-        # 7. The answer to an open dialog (feedback, a question, "continue or stop?").
+        # Step 7 (and 8). The answer to an open dialog: feedback, a general question, or
+        # "continue or stop?" (its "stop" is step 2's reason (b)).
         dialog = dialogs.dialog
         if dialog is not None and not barrier.run(
             "dialog", dialog.kind.value, dialogs.advance, now
         ):
             self._drop_dialog(now)
+        # Step 2, after a cancel: the cancelled activities' cleanup states run on.
         if runner.cleaning:
             barrier.run("cleanup", None, runner.wind_down, now)
         if dialogs.dialog is None:
-            # 2. An activity runs: what it did, then the four reasons to cancel it.
+            # Step 2 (and 7). An activity runs: what it did (reason (d); after it ends,
+            # maybe the rating is asked), then the reasons (a) to (c) to cancel it.
             running = runner.current
             if running is not None and not barrier.run(
                 "activity", running.name, choice.follow_activity, now
@@ -141,18 +152,18 @@ class Controller:
                 "cancel", running.name, choice.check_cancel_reasons, now
             ):
                 self._abandon_current(now, "cancel")
-            # 4, 6, 8. Nothing runs: the motivation's behavior, or with a user an agenda
-            # item, a general question, or an activity chosen by their proactivity.
+            # Steps 4, 6 and 8. Nothing runs: the motivation's behavior, or with a user an
+            # agenda item, a general question, or an activity chosen by their proactivity.
             if runner.current is None and dialogs.dialog is None:
                 barrier.run("choose", sessions.ready_user(), choice.choose, now)
         else:
-            # (c) for a dialog: a due agenda item interrupts the question
+            # Step 2's reason (c) for a dialog: a due agenda item interrupts the question.
             barrier.run("agenda", sessions.ready_user(), choice.check_agenda_in_dialog, now)
         session = sessions.session
         if session is not None and session.account is not None:
-            # after the sends of this tick: see SessionAccount.on_tick
+            # Step 9's bookkeeping, after the sends of this tick: SessionAccount.on_tick.
             barrier.run("metrics", None, session.account.on_tick, now, self.deps.expression.pending)
-        # 9. The record of this pass; the daemon publishes it and ticks again.
+        # Step 9. The record of this pass; the daemon publishes it and ticks again.
         return self._record(now, urgent)
 
     def _motivate(self, snapshot: InputSnapshot, now: datetime, monotonic: float) -> None:
