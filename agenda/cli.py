@@ -53,7 +53,7 @@ def _agenda(db: str | None, check_users: bool = False) -> Iterator[Agenda]:
     url = _url(db)
     exists, close_store = _user_check(url) if check_users else (None, lambda: None)
     try:
-        agenda = Agenda(url, user_exists=exists)
+        agenda = Agenda.open(url, user_exists=exists)
         try:
             yield agenda
         finally:
