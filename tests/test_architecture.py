@@ -161,6 +161,40 @@ def test_each_piece_of_the_controllers_state_is_written_by_its_owner() -> None:
     assert writes == [], "ask the owner to change its state (a method), do not assign it"
 
 
+SHARED_OPTIONS = ("--connect", "--zenoh-config", "--robot", "--robot-id", "--db")
+"""Options every command spells alike, from dms/kernel/cli_options.py."""
+OWN_VARIANTS = {
+    "dms/cli.py": "dms run: each flag's help names its setting and variable",
+    "dms/viewer/cli.py": "--robot: several robots, every robot by default",
+    "dms/foxglove_cli.py": "--robot: '*' for every robot",
+    "dms/studio/cli.py": "--connect: no daemon by default, the simulated Mini only",
+    "sim/record_cli.py": "play --robot: the recorded robot by default",
+}
+"""Files that define one of them differently, on purpose, and why."""
+
+
+def test_shared_options_are_defined_once() -> None:
+    spelt = set()
+    for pkg in PACKAGES:
+        for path in sorted((ROOT / pkg).rglob("*.py")):
+            name = str(path.relative_to(ROOT))
+            if name == "dms/kernel/cli_options.py":
+                continue
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                if (
+                    isinstance(node, ast.Call)
+                    and isinstance(node.func, ast.Attribute)
+                    and node.func.attr == "Option"
+                    and any(
+                        isinstance(arg, ast.Constant) and arg.value in SHARED_OPTIONS
+                        for arg in node.args
+                    )
+                ):
+                    spelt.add(name)
+    assert spelt <= set(OWN_VARIANTS), "use the option of dms/kernel/cli_options.py"
+    assert set(OWN_VARIANTS) <= spelt, "a variant is gone: drop it from OWN_VARIANTS"
+
+
 MAX_LINES = 600
 REASON = "Over 600 lines: "
 REASON_WITHIN = 15  # the reason line sits at the top: a comment or the docstring's start
