@@ -311,7 +311,7 @@ def open_store_and_agenda(
         return profiles.met(user_id) or user_id in store.list_ids()
 
     try:
-        agenda = Agenda(
+        agenda = Agenda.open(
             url,
             user_exists=user_exists,
             background=background_io,

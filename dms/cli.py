@@ -28,6 +28,7 @@ from typer.core import TyperCommand, TyperGroup
 from dms.face.cli import face_command
 from dms.fleet_cli import router as router_command
 from dms.foxglove_cli import foxglove as foxglove_command
+from dms.kernel.cli_options import DbOption
 from dms.kernel.errors import DmsError
 from dms.operator_cli import echo_command, request_command, state_command, topics_command
 from dms.reachy_cli import reachy as reachy_command
@@ -138,15 +139,7 @@ def _db() -> None:
 
 @db_app.command("upgrade")
 def upgrade(
-    db: Annotated[
-        str | None,
-        typer.Option(
-            "--db",
-            envvar="DMS_DB",
-            help="SQLAlchemy database URL or SQLite file (default: the daemon's).",
-            show_default=False,
-        ),
-    ] = None,
+    db: DbOption = None,
 ) -> None:
     """Bring the database's schema (profiles and agenda) to the newest version.
 

@@ -4,23 +4,18 @@ from __future__ import annotations
 
 import signal
 import threading
-from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from dms.kernel import keys
+from dms.kernel.cli_options import ConnectOption, ZenohConfigOption
 from dms.kernel.errors import ConfigError
 
 
 def foxglove(
-    connect: Annotated[
-        list[str] | None,
-        typer.Option(help="Zenoh endpoint of a daemon or router (default tcp/127.0.0.1:7447)."),
-    ] = None,
-    zenoh_config: Annotated[
-        Path | None, typer.Option("--zenoh-config", help="Zenoh JSON5 configuration file.")
-    ] = None,
+    connect: ConnectOption = None,
+    zenoh_config: ZenohConfigOption = None,
     port: Annotated[
         int, typer.Option(help="WebSocket port for Foxglove.", min=0, max=65535)
     ] = 8765,

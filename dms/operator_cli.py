@@ -24,18 +24,8 @@ from typing import Annotated, Any, Literal
 import typer
 
 from dms.kernel import keys
+from dms.kernel.cli_options import ConnectOption, RobotOption, ZenohConfigOption
 from dms.kernel.errors import ConfigError
-
-RobotIdOption = Annotated[str, typer.Option("--robot", "--robot-id", help="Robot id.")]
-ConnectOption = Annotated[
-    list[str] | None,
-    typer.Option(
-        help="Zenoh endpoint to connect to (repeat for more).", show_default="tcp/127.0.0.1:7447"
-    ),
-]
-ZenohConfigOption = Annotated[
-    Path | None, typer.Option("--zenoh-config", help="Zenoh JSON5 configuration file.")
-]
 
 
 class NothingSeen(ConfigError):
@@ -132,7 +122,7 @@ def echo_command(
             show_default="until Ctrl-C",
         ),
     ] = None,
-    robot_id: RobotIdOption = "mini",
+    robot_id: RobotOption = "mini",
     connect: ConnectOption = None,
     zenoh_config: ZenohConfigOption = None,
 ) -> None:
@@ -249,7 +239,7 @@ def topics_command(
         float, typer.Option(min=0.1, help="How long to listen for messages, in seconds.")
     ] = 2.0,
     as_json: Annotated[bool, typer.Option("--json", help="JSON on stdout.")] = False,
-    robot_id: RobotIdOption = "mini",
+    robot_id: RobotOption = "mini",
     connect: ConnectOption = None,
     zenoh_config: ZenohConfigOption = None,
 ) -> None:
@@ -312,7 +302,7 @@ def state_command(
     timeout: Annotated[
         float, typer.Option(min=0.1, help="How long to wait for the reply, in seconds.")
     ] = 5.0,
-    robot_id: RobotIdOption = "mini",
+    robot_id: RobotOption = "mini",
     connect: ConnectOption = None,
     zenoh_config: ZenohConfigOption = None,
 ) -> None:
@@ -424,7 +414,7 @@ def request_command(
     as_json: Annotated[
         bool, typer.Option("--json", help="Print the decisions as JSON, one a line.")
     ] = False,
-    robot_id: RobotIdOption = "mini",
+    robot_id: RobotOption = "mini",
     connect: ConnectOption = None,
     zenoh_config: ZenohConfigOption = None,
 ) -> None:

@@ -20,6 +20,7 @@ from typing import Annotated
 import typer
 
 from dms.kernel import keys
+from dms.kernel.cli_options import ConnectOption, RobotOption, ZenohConfigOption
 from dms.kernel.errors import ConfigError
 
 ROS_LIBRARIES = (
@@ -152,16 +153,9 @@ def _foreign_python(entry: str) -> bool:
 
 
 def ros2(
-    robot: Annotated[
-        str, typer.Option("--robot", "--robot-id", help="The robot whose keys to bridge.")
-    ] = "mini",
-    connect: Annotated[
-        list[str] | None,
-        typer.Option(help="Zenoh endpoint of a daemon or router (default tcp/127.0.0.1:7447)."),
-    ] = None,
-    zenoh_config: Annotated[
-        Path | None, typer.Option("--zenoh-config", help="Zenoh JSON5 configuration file.")
-    ] = None,
+    robot: RobotOption = "mini",
+    connect: ConnectOption = None,
+    zenoh_config: ZenohConfigOption = None,
     unconfigured: Annotated[
         bool,
         typer.Option(help="Leave the node for a lifecycle manager to configure and activate."),

@@ -12,13 +12,15 @@ from typing import Annotated
 
 import typer
 
+from dms.kernel.cli_options import RobotOption
+
 app = typer.Typer(no_args_is_help=True)
 
 
 @app.command()
 def init(
     directory: Annotated[Path, typer.Argument(help="Where to write the CA, keys and configs.")],
-    robot_id: Annotated[str, typer.Option("--robot-id", help="The robot these files are for.")],
+    robot_id: RobotOption,
     listen: Annotated[
         str | None,
         typer.Option(

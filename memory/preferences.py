@@ -337,7 +337,8 @@ def posterior(prior_mean: float, score: ActivityScore | None) -> Vector:
 
 @dataclass(frozen=True, slots=True)
 class ChoiceDraw:
-    """The random draws behind one :meth:`ActivityChooser.choose`, for its explanation."""
+    """What one :meth:`ActivityChooser.choose` picked and the random draws behind it,
+    for the decision's explanation."""
 
     activity: str
     """What was picked."""
@@ -353,6 +354,9 @@ class ChoiceDraw:
     novelty pick."""
     novelty_probability: float = NOVELTY_PROBABILITY
     """The novelty coin's threshold."""
+    explained: bool = True
+    """False for another chooser put in this one's place (a study's baseline): its
+    draws are its own, and only ``activity`` and ``candidates`` say anything."""
 
     @property
     def novelty(self) -> bool:
@@ -398,9 +402,6 @@ class ActivityChooser:
         """The last profile asked about, the model that answered, its beliefs and the
         catalogue they cover: a choice asks twice (to choose, then to explain), of the
         same frozen profile."""
-        self.last_draw: ChoiceDraw | None = None
-        """What drew the last :meth:`choose` (a new object at every choice): the
-        decision's ``why`` names it."""
 
     def session_ended(self, now: datetime) -> bool:
         """When a user leaves: retrain if none ran for :attr:`retrain_every_s`.
@@ -498,8 +499,11 @@ class ActivityChooser:
         rng.shuffle(names)
         return sorted(names, key=lambda name: -means[name])
 
-    def choose(self, profile: Profile, rng: random.Random, exclude: Collection[str] = ()) -> str:
-        """One activity not in ``exclude``; what drew it is left in :attr:`last_draw`.
+    def choose(
+        self, profile: Profile, rng: random.Random, exclude: Collection[str] = ()
+    ) -> ChoiceDraw:
+        """One activity not in ``exclude``, with the draws that picked it (the decision's
+        ``why`` names them).
 
         With probability :data:`NOVELTY_PROBABILITY` one the user never did; otherwise
         the best of one draw from each belief (Thompson sampling, from the Beta of the
@@ -514,10 +518,7 @@ class ActivityChooser:
         untried = [name for name in names if name not in profile.scores]
         coin = rng.random() if untried else None  # the novelty coin, only while one is untried
         if coin is not None and coin < NOVELTY_PROBABILITY:
-            pick = rng.choice(untried)
-            self.last_draw = ChoiceDraw(pick, tuple(names), tuple(untried), coin, None)
-            return pick
+            return ChoiceDraw(rng.choice(untried), tuple(names), tuple(untried), coin, None)
         draws = {name: rng.betavariate(*beliefs[name]) for name in names}
         pick = max(names, key=lambda name: draws[name])
-        self.last_draw = ChoiceDraw(pick, tuple(names), tuple(untried), coin, draws)
-        return pick
+        return ChoiceDraw(pick, tuple(names), tuple(untried), coin, draws)

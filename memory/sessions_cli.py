@@ -18,8 +18,9 @@ from typing import Annotated, Any, Literal
 
 import typer
 
+from dms.kernel.cli_options import DbOption
 from dms.kernel.session_metrics import METRIC_KEYS
-from memory.cli import DbOption, existing_url
+from memory.cli import existing_url
 from memory.store import ProfileStore
 
 app = typer.Typer(no_args_is_help=True)

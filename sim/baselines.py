@@ -26,6 +26,7 @@ from collections.abc import Callable, Collection
 from typing import TYPE_CHECKING, Literal
 
 from dms.kernel.activity_names import ENTERTAINMENT_ACTIVITIES
+from memory.preferences import ChoiceDraw
 from sim.adaptation import population_ranking
 
 if TYPE_CHECKING:
@@ -62,11 +63,18 @@ class BaselineChooser:
     def __getattr__(self, attribute: str) -> object:
         return getattr(self.inner, attribute)
 
-    def choose(self, profile: Profile, rng: random.Random, exclude: Collection[str] = ()) -> str:
-        """One entertainment activity not in ``exclude``, by the baseline's rule."""
+    def choose(
+        self, profile: Profile, rng: random.Random, exclude: Collection[str] = ()
+    ) -> ChoiceDraw:
+        """One entertainment activity not in ``exclude``, by the baseline's rule; its
+        draws are its own (the decision's ``why`` names none)."""
         names = [n for n in ENTERTAINMENT_ACTIVITIES if n not in exclude] or list(
             ENTERTAINMENT_ACTIVITIES
         )
+        pick = self._pick(profile, names)
+        return ChoiceDraw(pick, tuple(names), (), None, None, explained=False)
+
+    def _pick(self, profile: Profile, names: list[str]) -> str:
         if self.name == "random":
             return self.rng.choice(names)
         if self.name == "fixed":

@@ -15,14 +15,13 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import typer
 
+from dms.kernel.cli_options import DEFAULT_ENDPOINT, ConnectOption, JsonOption, RobotOption
 from sim.errors import ExpectationFailed, SimError
 
 if TYPE_CHECKING:
     from dms.config import Settings
 
 app = typer.Typer(no_args_is_help=True)
-
-DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 
 
 def _print_json(payload: object) -> None:
@@ -44,7 +43,7 @@ def _stop_on_signals() -> threading.Event:
 @app.command("run")
 def run_command(
     scenario: Annotated[str, typer.Argument(help="Scenario file (or a shipped scenario's name).")],
-    as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
+    as_json: JsonOption = False,
 ) -> None:
     """Replay a scripted session on the virtual clock; exit 1 naming the first failed check."""
     from sim.runner import run_scenario
@@ -266,7 +265,7 @@ def compare_command(
             min=1, max=100, help="Visits of each participant; every metric is also given per visit."
         ),
     ] = 1,
-    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+    as_json: JsonOption = False,
 ) -> None:
     """Run two designs or choosers on the same participants; per metric, both means and
     the paired difference (B - A) with a bootstrap 95 % interval, pooled and per visit."""
@@ -317,7 +316,7 @@ def sensitivity_command(
     out: Annotated[
         Path, typer.Option("--out", help="Folder for sensitivity.csv and sensitivity.png.")
     ] = Path("sensitivity"),
-    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+    as_json: JsonOption = False,
 ) -> None:
     """Move each input of the study (the participants', the robot's, the protocol's, the
     content's and the controller's settings) by ±50 % and show which Table 4 metric moves
@@ -397,7 +396,7 @@ def replay_command(
         Path | None,
         typer.Option(help="A TOML configuration in place of the recorded daemon's."),
     ] = None,
-    as_json: Annotated[bool, typer.Option("--json", help="Print the report as JSON.")] = False,
+    as_json: JsonOption = False,
 ) -> None:
     """Feed a recording's inputs through the controller and report differing decisions.
 
@@ -428,8 +427,8 @@ def replay_command(
 
 @app.command("robot")
 def robot_command(
-    robot_id: Annotated[str, typer.Option("--robot-id", help="Robot id.")] = "mini",
-    connect: Annotated[list[str] | None, typer.Option(help="Zenoh endpoint to connect to.")] = None,
+    robot_id: RobotOption = "mini",
+    connect: ConnectOption = None,
     listen: Annotated[list[str] | None, typer.Option(help="Zenoh endpoint to listen on.")] = None,
     seed: Annotated[int, typer.Option(help="Seed of the simulated robot.")] = 0,
     duration: Annotated[float | None, typer.Option(min=0.0, help="Stop after S seconds.")] = None,

@@ -18,27 +18,17 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
+from dms.kernel.cli_options import (
+    DEFAULT_ENDPOINT,
+    ConnectOption,
+    RobotOption,
+    ZenohConfigOption,
+)
 from sim.errors import SimError
 
 if TYPE_CHECKING:
     from dms.bus import ZenohClient
     from sim.recording import McapRecorder
-
-DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
-
-RobotOption = Annotated[
-    str, typer.Option("--robot", "--robot-id", envvar="DMS_ROBOT_ID", help="Robot id.")
-]
-ConnectOption = Annotated[
-    list[str] | None,
-    typer.Option(
-        help=f"Zenoh endpoint to connect to (default {DEFAULT_ENDPOINT}).", show_default=False
-    ),
-]
-ZenohConfigOption = Annotated[
-    Path | None,
-    typer.Option("--zenoh-config", help="Zenoh JSON5 configuration file.", show_default=False),
-]
 
 
 def _stop_on_signals() -> threading.Event:

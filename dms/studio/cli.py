@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
+from dms.kernel.cli_options import RobotOption
 from dms.kernel.errors import ConfigError
 from dms.viewer.cli import TLS_CERT_HELP, TLS_KEY_HELP
 
@@ -81,7 +82,7 @@ def studio_command(
         Path | None,
         typer.Option(help="A Zenoh config file (a secured bus: the admin role's)."),
     ] = None,
-    robot: Annotated[str, typer.Option("--robot", help="The daemon's robot id.")] = "mini",
+    robot: RobotOption = "mini",
 ) -> None:
     """Build, try and save behaviors with the mouse, in a web page.
 

@@ -12,6 +12,7 @@ from typing import Annotated
 
 import typer
 
+from dms.kernel.cli_options import ConnectOption, ZenohConfigOption
 from dms.kernel.errors import ConfigError
 from dms.kernel.keys import ROBOT_ID_RE
 from dms.viewer.tls import refuse_clear_text
@@ -54,16 +55,8 @@ def bind(host: str, port: int, page: str, tls: bool) -> socket.socket:
 
 
 def view_command(
-    connect: Annotated[
-        list[str] | None,
-        typer.Option(
-            help="Zenoh endpoint of a daemon or router (repeat for more).",
-            show_default="tcp/127.0.0.1:7447",
-        ),
-    ] = None,
-    zenoh_config: Annotated[
-        Path | None, typer.Option("--zenoh-config", help="Zenoh JSON5 configuration file.")
-    ] = None,
+    connect: ConnectOption = None,
+    zenoh_config: ZenohConfigOption = None,
     port: Annotated[
         int, typer.Option(min=0, max=65535, help="HTTP port (0: any free port).")
     ] = DEFAULT_PORT,

@@ -107,9 +107,9 @@ def test_greedy_takes_the_learned_rankings_best_whatever_the_draws() -> None:
     best = max(means, key=means.__getitem__)
     assert best == "bingo"  # rated 5 of 5 twice
     for draw in range(20):  # the daemon's random stream does not move it
-        assert greedy.choose(profile, random.Random(draw)) == best
+        assert greedy.choose(profile, random.Random(draw)).activity == best
     assert sorted(means, key=means.__getitem__)[-2] == "quiz"  # rated 4 of 5 twice
-    assert greedy.choose(profile, random.Random(0), exclude={best}) == "quiz"
+    assert greedy.choose(profile, random.Random(0), exclude={best}).activity == "quiz"
 
 
 def test_compare_reports_every_metric_per_visit(capsys: pytest.CaptureFixture[str]) -> None:
