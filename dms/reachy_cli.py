@@ -20,6 +20,7 @@ from typing import Annotated
 import typer
 
 from dms.kernel import keys
+from dms.kernel.cli_options import ConnectOption, RobotOption, ZenohConfigOption
 from dms.kernel.errors import ConfigError
 
 CHECKOUT = Path(__file__).resolve().parents[1]
@@ -73,16 +74,9 @@ def prepare(venv: Path = VENV, source: Path = SOURCE, echo: bool = True) -> Path
 
 
 def reachy(
-    robot: Annotated[
-        str, typer.Option("--robot", "--robot-id", help="The robot whose keys to carry out.")
-    ] = "mini",
-    connect: Annotated[
-        list[str] | None,
-        typer.Option(help="Zenoh endpoint of a daemon or router (default tcp/127.0.0.1:7447)."),
-    ] = None,
-    zenoh_config: Annotated[
-        Path | None, typer.Option("--zenoh-config", help="Zenoh JSON5 configuration file.")
-    ] = None,
+    robot: RobotOption = "mini",
+    connect: ConnectOption = None,
+    zenoh_config: ZenohConfigOption = None,
     host: Annotated[str, typer.Option(help="The Reachy Mini daemon's host.")] = "localhost",
     port: Annotated[int, typer.Option(help="The Reachy Mini daemon's port.")] = 8000,
     media: Annotated[
@@ -97,7 +91,7 @@ def reachy(
     """Drive a Reachy Mini (real or simulated) as the robot of a daemon run with
     ``--robot zenoh``, until SIGINT or SIGTERM; the bridge runs in its own environment,
     .venv-reachy beside the checkout, made on first use (docs/reachy.md)."""
-    if not keys.ROBOT_ID_RE.match(robot):
+    if not keys.ROBOT_ID_RE.fullmatch(robot):
         raise ConfigError(f"--robot {robot!r}: lower-case letters, digits, _ and - only")
     if not 0 < port < 65536:
         raise ConfigError(f"--port {port}: a TCP port, 1 to 65535")

@@ -12,31 +12,18 @@ from typing import Annotated
 
 import typer
 
+from dms.kernel.cli_options import ConnectOption, RobotOption, ZenohConfigOption
 from dms.kernel.errors import ConfigError
 from dms.viewer.cli import TLS_CERT_HELP, TLS_KEY_HELP
 
 DEFAULT_PORT = 8070
-LANGUAGE_RE = r"^[A-Za-z]{2,3}(-[A-Za-z0-9]{2,8})*$"
+LANGUAGE_RE = r"[A-Za-z]{2,3}(-[A-Za-z0-9]{2,8})*"
 
 
 def face_command(
-    connect: Annotated[
-        list[str] | None,
-        typer.Option(
-            help="Zenoh endpoint of the daemon or a router (repeat for more).",
-            show_default="tcp/127.0.0.1:7447",
-        ),
-    ] = None,
-    zenoh_config: Annotated[
-        Path | None,
-        typer.Option(
-            "--zenoh-config",
-            help="Zenoh JSON5 file (a bus secured by `dms secure init`: its face.json5).",
-        ),
-    ] = None,
-    robot: Annotated[
-        str, typer.Option("--robot", "--robot-id", help="The daemon's robot id.")
-    ] = "mini",
+    connect: ConnectOption = None,
+    zenoh_config: ZenohConfigOption = None,
+    robot: RobotOption = "mini",
     port: Annotated[
         int, typer.Option(min=0, max=65535, help="HTTP port (0: any free port).")
     ] = DEFAULT_PORT,
@@ -83,9 +70,9 @@ def face_command(
     from dms.viewer.server import serve
     from dms.viewer.tls import server_context
 
-    if not ROBOT_ID_RE.match(robot):
+    if not ROBOT_ID_RE.fullmatch(robot):
         raise ConfigError(f"--robot {robot!r}: lower-case letters, digits, _ and -")
-    if not re.match(LANGUAGE_RE, language):
+    if not re.fullmatch(LANGUAGE_RE, language):
         raise ConfigError(f"--language {language!r}: a language tag such as en, es or en-GB")
     config = make_client_config(connect or (), zenoh_config)  # a bad file fails before the port
     tls = server_context(tls_cert, tls_key)
