@@ -61,7 +61,7 @@ from dms.config import load_config  # noqa: E402
 from dms.daemon import Daemon  # noqa: E402
 from dms.kernel import keys  # noqa: E402
 from dms.kernel.clock import VirtualClock  # noqa: E402
-from dms.profiles import ONCE  # noqa: E402
+from dms.storage import STORE_OPS  # noqa: E402
 from sim.adapters import daily_reminder, ensure_user  # noqa: E402
 from sim.longterm import START, PlannedVisit, plan_visits  # noqa: E402
 from sim.persona import load_persona, shipped_personas  # noqa: E402
@@ -73,8 +73,9 @@ DISK_MB = 64
 """The tmpfs the database lives on (filled to the last byte while the disk is full)."""
 WAIT_S = 120.0
 """How long the end of the run waits for every write to land."""
-IDENTIFIED = ONCE | {"start_session"}
-"""Profile writes that carry an id, recorded in ``applied_writes`` when stored."""
+IDENTIFIED = STORE_OPS - {"get_or_create", "find", "last_run", "end_session"}
+"""Profile writes that carry an id, recorded in ``applied_writes`` when stored (the
+reads carry none, and a session's end is its start's key)."""
 
 HOLD = """
 import sqlite3, sys

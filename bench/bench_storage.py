@@ -71,13 +71,13 @@ def spool_and_drain(writes: int = WRITES) -> tuple[float, float]:
         now = datetime(2026, 11, 23, 10, 0, tzinfo=UTC)
         service.load("ann", now, wait_s=10.0)
         holder = LockHolder(db)
-        service.call("record_feedback", "ann", "quiz", 0.5, now)
+        service.record_feedback("ann", "quiz", 0.5, now)
         deadline = time.monotonic() + 10
         while not len(service.writer.spool) and time.monotonic() < deadline:
             time.sleep(0.01)  # the first write finds the lock and starts the spool
         started = time.perf_counter()
         for n in range(1, writes):
-            service.call("record_feedback", "ann", "quiz", (n % 5) / 4, now + timedelta(seconds=n))
+            service.record_feedback("ann", "quiz", (n % 5) / 4, now + timedelta(seconds=n))
         rate = (writes - 1) / (time.perf_counter() - started)
         assert service.pending_writes == writes
         holder.release()

@@ -20,12 +20,20 @@ from __future__ import annotations
 import logging
 import threading
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from dms.storage import QUEUE_SIZE, RETRY_EVERY_S, StorageWriter, Waiter, Write, sqlite_file
+from dms.storage import (
+    QUEUE_SIZE,
+    RETRY_EVERY_S,
+    StorageWriter,
+    StoreOp,
+    Waiter,
+    Write,
+    sqlite_file,
+)
 from memory import Profile, ProfileStore
 from memory.backlog import MEMORY_BOUND
 from memory.db import side_file
@@ -40,22 +48,7 @@ LOAD_WAIT_S = 0.05
 enough for a healthy database, so the session starts with the profile in the same tick;
 short enough that a locked or absent database costs the tick nothing noticeable."""
 
-_FIND = "find"
-"""The read behind :meth:`ProfileService.stored` (the store's ``get`` without the error)."""
-
 _RECORD_ACTIVITY_SESSION = 7  # the position of session_id in ProfileStore.record_activity
-
-ONCE = frozenset(
-    {
-        "update",
-        "record_activity",
-        "record_feedback",
-        "record_answer",
-        "record_interaction",
-        "record_initiative",
-    }
-)
-"""Store writes that take a ``write_id`` (``start_session`` takes its key as one)."""
 
 
 class ProfileService:
@@ -107,31 +100,33 @@ class ProfileService:
         """
         with self._cache_lock:
             self._met.add(user_id)
-        waiter = Waiter()
-        self.writer.submit(Write("get_or_create", (user_id, now)), waiter)
-        waiter.wait(wait_s)
-        if isinstance(waiter.result, Profile):
-            return waiter.result
-        return self.cached(user_id)
+        profile = self._read(Write("get_or_create", (user_id, now)), wait_s)
+        return profile if isinstance(profile, Profile) else self.cached(user_id)
 
-    def ask(self, method: str, *args: Any, wait_s: float = LOAD_WAIT_S) -> Any:
+    def _read(self, write: Write, wait_s: float) -> Any:
         """A store read, in order behind the writes queued before it, waiting at most
         ``wait_s``: its result, or None when it has not landed by then."""
         waiter = Waiter()
-        self.writer.submit(Write(method, args), waiter)
+        self.writer.submit(write, waiter)
         waiter.wait(wait_s)
         return waiter.result
 
     def stored(self, user_id: str, wait_s: float = LOAD_WAIT_S) -> bool | None:
         """Whether the store has a profile for ``user_id`` (read off the tick, in order
         behind the writes queued before it); None when the read has not landed in time."""
-        found = self.ask(_FIND, user_id, wait_s=wait_s)
+        found = self._read(Write("find", (user_id,)), wait_s)
         return found if isinstance(found, bool) else None
 
     def meet_newcomer(self, user_id: str | None) -> None:
         """``user_id`` is in front of the robot, not stored yet (None: nobody is): the
         agenda takes items for her meanwhile (:meth:`met`)."""
         self.newcomer = user_id
+
+    def last_run(self, user_id: str, wait_s: float = LOAD_WAIT_S) -> dict[str, Any] | None:
+        """The user's last activity run (:meth:`memory.ProfileStore.last_run`), read off
+        the tick; None when there is none or the read has not landed in time."""
+        found = self._read(Write("last_run", (user_id,)), wait_s)
+        return found if isinstance(found, dict) else None
 
     def met(self, user_id: str) -> bool:
         """The robot has met ``user_id`` in this run: their profile exists, or is being
@@ -146,20 +141,64 @@ class ProfileService:
         with self._cache_lock:
             return self._cache.get(user_id)
 
-    def call(self, method: str, *args: Any, **kwargs: Any) -> Any:
-        """Queue the store call ``method``; returns None, or for ``start_session`` its key.
+    # ------------------------------------------------------------------ the writes
+    # Each queues one store call and returns at once. Each gets a ``write_id``, spooled
+    # with it, so that a replay applies it once (the module's docstring).
 
-        The key stands for the session's id in later calls (``end_session``,
-        ``record_activity``), also after a restart when the calls were spooled.
-        """
-        if method == "start_session":
-            key = f"session-{uuid.uuid4().hex}"
-            self.writer.submit(Write(method, args, {**kwargs, "key": key}))
-            return key
-        if method in ONCE and "write_id" not in kwargs:
-            kwargs = {**kwargs, "write_id": uuid.uuid4().hex}
-        self.writer.submit(Write(method, args, kwargs))
-        return None
+    def start_session(self, user_id: str, now: datetime) -> str:
+        """Open a session; returns its key, which stands for the session's id in later
+        writes (:meth:`end_session`, :meth:`record_activity`), also after a restart when
+        they were spooled."""
+        key = f"session-{uuid.uuid4().hex}"
+        self.writer.submit(Write("start_session", (user_id, now), {"key": key}))
+        return key
+
+    def end_session(
+        self, session: str | int, now: datetime, metrics: Mapping[str, Any] | None = None
+    ) -> None:
+        """Close the session ``session`` (its key, or its id) with its Table 4 metrics."""
+        extra = {} if metrics is None else {"metrics": dict(metrics)}
+        self.writer.submit(Write("end_session", (session, now), extra))
+
+    def update(self, user_id: str, now: datetime, **fields: Any) -> None:
+        """Set profile fields or attributes (:meth:`memory.ProfileStore.update`)."""
+        self._once("update", (user_id, now), fields)
+
+    def record_activity(
+        self,
+        user_id: str,
+        activity: str,
+        started: datetime,
+        ended: datetime,
+        outcome: str,
+        chosen_by: str,
+        cancelled: bool,
+        session: str | int | None = None,
+    ) -> None:
+        """One activity run, in ``session`` (its key, or its id) when there is one."""
+        self._once(
+            "record_activity",
+            (user_id, activity, started, ended, outcome, chosen_by, cancelled, session),
+        )
+
+    def record_feedback(self, user_id: str, activity: str, score: float, now: datetime) -> None:
+        """The user's rating of ``activity``, 0..1."""
+        self._once("record_feedback", (user_id, activity, score, now))
+
+    def record_answer(self, user_id: str, question_id: str, answer: str, now: datetime) -> None:
+        """The user's answer to a general question."""
+        self._once("record_answer", (user_id, question_id, answer, now))
+
+    def record_interaction(self, user_id: str, channel: str, answered: bool, now: datetime) -> None:
+        """Whether the user answered a prompt on ``channel`` (voice or screen)."""
+        self._once("record_interaction", (user_id, channel, answered, now))
+
+    def record_initiative(self, user_id: str, took_initiative: bool, now: datetime) -> None:
+        """Whether the user took the initiative when offered it (proactivity)."""
+        self._once("record_initiative", (user_id, took_initiative, now))
+
+    def _once(self, op: StoreOp, args: tuple[Any, ...], kwargs: Mapping[str, Any] = {}) -> None:
+        self.writer.submit(Write(op, args, {**kwargs, "write_id": uuid.uuid4().hex}))
 
     def retry(self, now: datetime) -> None:
         """Called every tick: without a writer thread, replay the spool when due."""
@@ -179,7 +218,7 @@ class ProfileService:
     def _apply(self, write: Write) -> Any:
         """Run one write against the store (the writer's thread)."""
         args, kwargs = list(write.args), dict(write.kwargs)
-        if write.method == _FIND:
+        if write.method == "find":
             try:
                 return self.store.get(str(args[0])) is not None
             except ProfileNotFound:

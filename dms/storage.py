@@ -15,7 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, get_args
 
 from memory.backlog import MEMORY_BOUND
 from memory.watch import sqlite_file
@@ -25,8 +25,10 @@ from memory.writer import WriterHealth as StorageHealth
 __all__ = [
     "QUEUE_SIZE",
     "RETRY_EVERY_S",
+    "STORE_OPS",
     "StorageHealth",
     "StorageWriter",
+    "StoreOp",
     "Waiter",
     "Write",
     "sqlite_file",
@@ -59,11 +61,30 @@ def decode(value: Any) -> Any:
     return value
 
 
+StoreOp = Literal[
+    "get_or_create",
+    "find",
+    "last_run",
+    "update",
+    "start_session",
+    "end_session",
+    "record_activity",
+    "record_feedback",
+    "record_answer",
+    "record_interaction",
+    "record_initiative",
+]
+"""What a :class:`Write` does: a :class:`memory.ProfileStore` method of that name (``find``
+is ``get`` without the error). :class:`dms.profiles.ProfileService` makes each one from a
+typed method; the name is what a spool file holds."""
+STORE_OPS: frozenset[str] = frozenset(get_args(StoreOp))
+
+
 @dataclass(frozen=True, slots=True)
 class Write:
-    """One store call, ``method(*args, **kwargs)``, as it is queued, spooled and replayed."""
+    """One store call, ``op(*args, **kwargs)``, as it is queued, spooled and replayed."""
 
-    method: str
+    method: StoreOp
     args: tuple[Any, ...] = ()
     kwargs: dict[str, Any] = field(default_factory=dict)
 
@@ -72,13 +93,17 @@ class Write:
 
     @classmethod
     def from_json(cls, entry: dict[str, Any]) -> Write:
-        return cls(str(entry["op"]), tuple(decode(entry["args"])), dict(decode(entry["kwargs"])))
+        op = entry["op"]
+        if op not in STORE_OPS:
+            raise ValueError(f"not a store write: {op!r:.60}")
+        return cls(op, tuple(decode(entry["args"])), dict(decode(entry["kwargs"])))
 
     @staticmethod
     def readable(entry: dict[str, Any]) -> bool:
-        """Whether a spooled entry has a write's keys and their types (others are set aside)."""
+        """Whether a spooled entry is a write this dms makes: a known op, its arguments of
+        the right types (others are set aside)."""
         return (
-            isinstance(entry.get("op"), str)
+            entry.get("op") in STORE_OPS
             and isinstance(entry.get("args"), list)
             and isinstance(entry.get("kwargs"), dict)
         )

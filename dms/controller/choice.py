@@ -404,7 +404,8 @@ class Choice:
         they wait, within their grace)."""
         if self.deps.agenda is None or self.runner.blocked:
             return []
-        return agenda_call(self.deps, "due", now, self.sessions.ready_user()) or []
+        user = self.sessions.ready_user()
+        return agenda_call(self.deps, "due", lambda agenda: agenda.due(now, user)) or []
 
     def check_agenda_in_dialog(self, now: datetime) -> None:
         """A dialog is open: a due agenda item interrupts it as it would an activity.
@@ -485,7 +486,7 @@ class Choice:
                 agenda_item=item,
             )
         # Delivered once started (or failed to start): an item never runs twice.
-        agenda_call(self.deps, "delivered", item, now)
+        agenda_call(self.deps, "delivered", lambda agenda: agenda.delivered(item, now))
         if not started:
             log.warning("agenda item %s did not start", item.item_id)
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from activities import BehaviorLibrary
 from dms.kernel.expression import ExpressionArbiter
@@ -17,6 +17,8 @@ if TYPE_CHECKING:  # the daemon opens its store and agenda after ready: not impo
     from dms.profiles import ProfileService
     from dms.rules import LiveRules
     from memory import ActivityChooser, QuestionBank
+
+T = TypeVar("T")
 
 log = logging.getLogger(__name__)
 
@@ -79,16 +81,17 @@ class Counters:
         self.misheard += 1
 
 
-def agenda_call(deps: ControllerDeps, method: str, *args: Any) -> Any:
-    """Call the agenda's ``method``; None if there is no agenda or the call failed.
+def agenda_call(deps: ControllerDeps, what: str, call: Callable[[Agenda], T]) -> T | None:
+    """``call`` on the agenda (``what`` names it in a report); None if there is no agenda
+    or the call failed.
 
     The agenda's database may fail: the failure is reported and the loop goes on.
     """
     if deps.agenda is None:
         return None
     try:
-        return getattr(deps.agenda, method)(*args)
+        return call(deps.agenda)
     except Exception as error:
-        log.exception("agenda.%s failed", method)
-        deps.report_error("agenda", f"{method}: {error}")
+        log.exception("agenda.%s failed", what)
+        deps.report_error("agenda", f"{what}: {error}")
         return None

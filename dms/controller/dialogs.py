@@ -90,7 +90,8 @@ class Dialogs:
             score = feedback_score(dialog.answer)
             if score is not None and session is not None:
                 activity = dialog.context["activity"]
-                sessions.profiles_call("record_feedback", session.user_id, activity, score, now)
+                user_id = session.user_id
+                sessions.write(user_id, lambda p: p.record_feedback(user_id, activity, score, now))
         elif dialog.kind is DialogKind.GENERAL_QUESTION:
             question = self.question
             self.question = None

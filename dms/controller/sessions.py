@@ -24,7 +24,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dms.config import ControllerSettings
 from dms.controller.deps import ControllerDeps, Counters, agenda_call
@@ -37,6 +37,9 @@ from dms.kernel.messages import ChosenBy, Mode, Reason, UserPerception
 from dms.kernel.session_metrics import SessionAccount
 from memory import Profile, ProfileError, Question
 from memory.profile import FIELDS, validate_fields
+
+if TYPE_CHECKING:
+    from dms.profiles import ProfileService
 
 log = logging.getLogger(__name__)
 
@@ -347,12 +350,12 @@ class Sessions:
         newcomer = None
         if self._stored(user_id):
             profile = self._load_profile(user_id, now)
-            session_id = self.profiles_call("start_session", user_id, now)
+            session_id = self._start_session(user_id, now)
         else:  # what a new profile would be; nothing is stored until she qualifies
             profile = newcomer = Profile(user_id=user_id, created_at=now, updated_at=now, version=1)
             session_id = None
             self._newcomer(user_id)
-        agenda_call(self.deps, "user_perceived", user_id, now)
+        agenda_call(self.deps, "user_perceived", lambda agenda: agenda.user_perceived(user_id, now))
         # read before the mode's rule, which reads nothing of the store
         resume = self._cut_to_resume(user_id, now) if newcomer is None else None
         # the session first, so that ChooseMode sees params.user (the profile and its id)
@@ -402,8 +405,7 @@ class Sessions:
         session.mark_stored()
         self._newcomer(None)
         self._load_profile(user_id, started)
-        session_id = self.profiles_call("start_session", user_id, started)
-        held = session.take_held(session_id if isinstance(session_id, str) else None)
+        held = session.take_held(self._start_session(user_id, started))
         for write in held:
             write()
         log.info("user %s is new: profile stored", user_id)
@@ -438,7 +440,8 @@ class Sessions:
                 metrics = session.account.result(
                     now, misheard=counters.misheard, unanswered=counters.unanswered
                 )
-            self.profiles_call("end_session", session.session_id, now, metrics=metrics)
+            key = session.session_id
+            self.write(session.user_id, lambda p: p.end_session(key, now, metrics))
         if session is not None and self.deps.chooser is not None:
             self.deps.chooser.session_ended(now)  # retrains in the background, if due
 
@@ -448,7 +451,7 @@ class Sessions:
         window = self.settings.resume_cut_within_s
         if window <= 0 or self.deps.profiles is None:
             return None
-        last = self.deps.profiles.ask("last_run", user_id)
+        last = self.deps.profiles.last_run(user_id)
         if not isinstance(last, dict) or last.get("outcome") != "cut":
             return None
         name, ended = last.get("activity"), last.get("ended")
@@ -501,26 +504,34 @@ class Sessions:
             columns, attributes = {}, {}
         session.answered.update(columns)
         session.answered.update(attributes)
-        self.profiles_call("record_answer", session.user_id, question.id, answer, now)
+        user_id = session.user_id
+        self.write(user_id, lambda p: p.record_answer(user_id, question.id, answer, now))
 
     def style(self) -> str:
         """How the user likes to be asked: ``voice`` or ``screen`` (Table 2)."""
         profile = self.profile()
         return str(getattr(profile, "interaction_style", None) or "voice")
 
-    def profiles_call(self, method: str, *args: Any, **kwargs: Any) -> Any:
-        """A write to memory, queued off the tick; None without memory. A write about the
-        session's user while she is not stored is held (or dropped, if she never will be)."""
-        if self.deps.profiles is None:
-            return None
+    def write(self, user_id: str, call: Callable[[ProfileService], object]) -> None:
+        """A write about ``user_id`` (``call`` makes it), queued off the tick; nothing
+        without memory. One about the session's user while she is not stored is held (or
+        dropped, if she never will be)."""
+        profiles = self.deps.profiles
+        if profiles is None:
+            return
         session = self.session
-        if session is not None and args and args[0] == session.user_id:
+        if session is not None and user_id == session.user_id:
             if session.refused:
-                return None
+                return
             if session.newcomer is not None:
-                session.hold(lambda: self.profiles_call(method, *args, **kwargs))
-                return None
-        return self.deps.profiles.call(method, *args, **kwargs)
+                session.hold(lambda: self.write(user_id, call))
+                return
+        call(profiles)
+
+    def _start_session(self, user_id: str, now: datetime) -> str | None:
+        """Open the stored user's session in the store: its key (None without memory)."""
+        profiles = self.deps.profiles
+        return None if profiles is None else profiles.start_session(user_id, now)
 
     # ------------------------------------------------------------------ what the session learns
 
@@ -531,12 +542,14 @@ class Sessions:
             self.counters.count_unanswered()
         if self.session is not None:
             channel = "screen" if channel == "screen" else "voice"
-            self.profiles_call("record_interaction", self.session.user_id, channel, answered, now)
+            user_id = self.session.user_id
+            self.write(user_id, lambda p: p.record_interaction(user_id, channel, answered, now))
 
     def note_initiative(self, took: bool, now: datetime) -> None:
         """The user took a chance to choose (``took``) or let it pass: their proactivity."""
         if self.session is not None:
-            self.profiles_call("record_initiative", self.session.user_id, took, now)
+            user_id = self.session.user_id
+            self.write(user_id, lambda p: p.record_initiative(user_id, took, now))
 
     def left_to_robot(self, now: datetime, unanswered: bool) -> None:
         """The user let the menu's choice pass (said "you choose", or did not answer in
@@ -560,19 +573,12 @@ class Sessions:
         if outcome == "cut":
             self._last_cut = (session.user_id, running.name, now, self.clock.offset)
 
-        def write() -> None:  # the session's id read when sent: a newcomer's comes later
-            self.profiles_call(
-                "record_activity",
-                session.user_id,
-                *run,
-                outcome == "cancelled",
-                session.session_id,
-            )
-
-        if session.newcomer is not None and not session.refused:
-            session.hold(write)
-        else:
-            write()
+        cancelled = outcome == "cancelled"  # the session's id is read when the write is
+        # sent: a newcomer's comes once she is stored
+        self.write(
+            session.user_id,
+            lambda p: p.record_activity(session.user_id, *run, cancelled, session.session_id),
+        )
         if running.name in NO_FEEDBACK_FOR:
             return False
         session.did(running.name)

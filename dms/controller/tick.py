@@ -269,8 +269,9 @@ class Controller:
 
     def _set_user_param(self, name: str, value: Any) -> None:
         user_id = self.sessions.user_id
-        if user_id is not None and self._now is not None:
-            self.sessions.profiles_call("update", user_id, self._now, **{name: value})
+        now = self._now
+        if user_id is not None and now is not None:
+            self.sessions.write(user_id, lambda p: p.update(user_id, now, **{name: value}))
 
     def params(self) -> Mapping[str, Mapping[str, Any]]:
         """``params.user``, ``params.robot`` and ``params.env`` for rules and behaviors."""

@@ -69,10 +69,10 @@ def test_a_lock_spools_the_writes_in_order_with_one_line_and_replays_them(
     assert loaded is not None and loaded.user_id == "ann"
     with Lock(db):
         assert service.load("ann", NOW) == loaded  # a read: WAL lets it through the lock
-        service.call("record_feedback", "ann", "quiz", 0.25, NOW)
-        service.call("update", "ann", NOW, name="Old")
-        service.call("record_feedback", "ann", "quiz", 0.75, NOW + timedelta(seconds=1))
-        service.call("update", "ann", NOW, name="New")
+        service.record_feedback("ann", "quiz", 0.25, NOW)
+        service.update("ann", NOW, name="Old")
+        service.record_feedback("ann", "quiz", 0.75, NOW + timedelta(seconds=1))
+        service.update("ann", NOW, name="New")
         assert service.pending_writes == 4
         service.retry(LATER)  # still locked: everything stays, nothing more is reported
     ((key, line),) = reports
@@ -99,7 +99,7 @@ def test_the_writer_thread_never_makes_the_caller_wait_and_nothing_is_lost(
     with Lock(db):
         started = time.monotonic()
         for n in range(40):
-            service.call("record_feedback", "ann", "quiz", n / 40, NOW + timedelta(seconds=n))
+            service.record_feedback("ann", "quiz", n / 40, NOW + timedelta(seconds=n))
         assert time.monotonic() - started < 0.5  # 40 writes against a locked database
         assert service.pending_writes == 40
     assert service.writer.wait_idle(10.0)
@@ -114,13 +114,11 @@ def test_a_clean_exit_keeps_the_spool_and_the_next_start_replays_it(
     service = service_of(store, reports)
     assert service.load("ann", NOW, wait_s=5.0) is not None
     with Lock(db):
-        session = service.call("start_session", "ann", NOW)
+        session = service.start_session("ann", NOW)
         assert isinstance(session, str)
-        service.call(
-            "record_activity", "ann", "quiz", NOW, LATER, "completed", "robot", False, session
-        )
-        service.call("end_session", session, LATER)
-        service.call("update", "ann", LATER, name="Ann")
+        service.record_activity("ann", "quiz", NOW, LATER, "completed", "robot", False, session)
+        service.end_session(session, LATER)
+        service.update("ann", LATER, name="Ann")
         assert service.close() == 4
     assert reports[-1][1].endswith(
         f"4 write(s) still spooled in {db}.spool; they are replayed at the next start"
@@ -141,10 +139,10 @@ def test_a_session_started_before_the_outage_is_found_after_a_restart(
 ) -> None:
     service = service_of(store, reports)
     service.load("ann", NOW, wait_s=5.0)
-    session = service.call("start_session", "ann", NOW)
+    session = service.start_session("ann", NOW)
     assert service.writer.wait_idle(10.0)  # the session is stored, its id known here only
     with Lock(db):
-        service.call("end_session", session, LATER)
+        service.end_session(session, LATER)
         assert service.close() == 1
     again = service_of(store, reports)
     assert again.writer.wait_idle(10.0)
@@ -159,8 +157,8 @@ def test_a_dropped_table_quarantines_that_write_and_the_rest_go_on(
     service.load("ann", NOW, wait_s=5.0)
     with store.engine.begin() as connection:
         connection.execute(text("DROP TABLE feedback"))
-    service.call("record_feedback", "ann", "quiz", 0.5, NOW)
-    service.call("update", "ann", NOW, name="Ann")
+    service.record_feedback("ann", "quiz", 0.5, NOW)
+    service.update("ann", NOW, name="Ann")
     assert service.writer.wait_idle(10.0)
     assert store.get("ann").name == "Ann"
     ((key, line),) = reports
@@ -176,7 +174,7 @@ def test_a_value_the_store_refuses_is_quarantined_not_queued(
 ) -> None:
     service = service_of(store, reports, threaded=False)
     service.load("ann", NOW)
-    service.call("record_feedback", "ann", "quiz", 7.0, NOW)
+    service.record_feedback("ann", "quiz", 7.0, NOW)
     assert service.pending_writes == 0
     ((key, line),) = reports
     assert key == "memory" and line.startswith("record_feedback refused: score:")
@@ -205,10 +203,10 @@ def test_postgres_refusing_a_nul_byte_blocks_no_other_write(
     try:
         for user in ("ann", "bob"):
             assert service.load(user, NOW, wait_s=5.0) is not None
-        service.call("record_answer", "ann", "favorite_room", "kitchen\x00", NOW)
+        service.record_answer("ann", "favorite_room", "kitchen\x00", NOW)
         for n in range(5):
-            service.call("record_feedback", "bob", "quiz", n / 4, NOW)
-        service.call("update", "ann", NOW, name="Ann")
+            service.record_feedback("bob", "quiz", n / 4, NOW)
+        service.update("ann", NOW, name="Ann")
         assert service.writer.wait_idle(10.0)
         assert store.export("bob")["profile"]["scores"]["quiz"]["feedback_count"] == 5
         assert store.get("ann").name == "Ann" and store.export("ann")["answers"] == []

@@ -277,24 +277,21 @@ def test_an_answer_still_on_its_way_to_the_store_counts_in_the_choice(tmp_path: 
         seed_profile(sim.stack, "ann", AGE_QUESTION, START)
         profiles = sim.controller.deps.profiles
         assert profiles is not None
-        call, in_flight = profiles.call, []
+        record_answer, in_flight = profiles.record_answer, []
 
-        def late(method: str, *args: object, **kwargs: object) -> object:
-            if method == "record_answer":
-                in_flight.append((method, args, kwargs))
-                return None
-            return call(method, *args, **kwargs)
+        def late(*args: Any) -> None:  # held back: the answer is still on its way
+            in_flight.append(args)
 
-        profiles.call = late  # type: ignore[method-assign]
+        profiles.record_answer = late  # type: ignore[method-assign]
         choice = _answer_age_then_choose(sim, ANN)
         cached = profiles.cached("ann")
         assert in_flight and cached is not None and cached.age is None
         chooser = sim.controller.deps.chooser
         assert chooser is not None
         assert _listed(choice) == _top_three(chooser, cached.model_copy(update={"age": 85}))
-        profiles.call = call  # type: ignore[method-assign]
-        for method, args, kwargs in in_flight:
-            call(method, *args, **kwargs)  # the write lands
+        profiles.record_answer = record_answer  # type: ignore[method-assign]
+        for args in in_flight:
+            record_answer(*args)  # the write lands
         assert sim.controller.sessions.profile() is profiles.cached("ann")
 
 

@@ -91,17 +91,15 @@ def test_two_daemons_profile_services_lose_nothing_and_quarantine_nothing(
 
         def robot(service: ProfileService) -> None:
             service.load("ann", NOW, wait_s=10)
-            session = service.call("start_session", "ann", NOW)
+            session = service.start_session("ann", NOW)
             for run in range(RUNS):
                 started = NOW + timedelta(minutes=run)
                 ended = started + timedelta(seconds=30)
-                service.call(
-                    "record_activity", "ann", "quiz", started, ended, "completed", "robot", False
-                )
-                service.call("record_activity", "ann", "jokes", started, ended, "x", "user", True)
-                service.call("record_interaction", "ann", "voice", False, ended)
-                service.call("record_initiative", "ann", run % 2 == 0, ended)
-            service.call("end_session", session, NOW + timedelta(hours=1))
+                service.record_activity("ann", "quiz", started, ended, "completed", "robot", False)
+                service.record_activity("ann", "jokes", started, ended, "x", "user", True)
+                service.record_interaction("ann", "voice", False, ended)
+                service.record_initiative("ann", run % 2 == 0, ended)
+            service.end_session(session, NOW + timedelta(hours=1))
 
         _in_parallel(*(lambda s=service: robot(s) for service in services))
         for service in services:
@@ -142,11 +140,11 @@ def test_a_spool_replayed_after_a_crash_applies_each_write_once(
 
     first.writer.submit = recording  # type: ignore[method-assign]
     first.load("ann", NOW)
-    key = first.call("start_session", "ann", NOW)
-    first.call("record_feedback", "ann", "quiz", 0.5, NOW)
-    first.call("record_activity", "ann", "quiz", NOW, NOW, "completed", "robot", False, key)
-    first.call("record_initiative", "ann", True, NOW)
-    first.call("update", "ann", NOW, name="Ann")
+    key = first.start_session("ann", NOW)
+    first.record_feedback("ann", "quiz", 0.5, NOW)
+    first.record_activity("ann", "quiz", NOW, NOW, "completed", "robot", False, key)
+    first.record_initiative("ann", True, NOW)
+    first.update("ann", NOW, name="Ann")
     session_id = first.writer.binds[key]
     applied = store.export("ann")
     assert all("write_id" in w.kwargs or "key" in w.kwargs for w in sent[1:])
