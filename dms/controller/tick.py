@@ -154,7 +154,7 @@ class Controller:
             # after the sends of this tick: see SessionAccount.on_tick
             barrier.run("metrics", None, session.account.on_tick, now, self.deps.expression.pending)
         # 9. The record of this pass; the daemon publishes it and ticks again.
-        return self._record(now, urgent)
+        return self._record(now, urgent, snapshot)
 
     def _motivate(self, snapshot: InputSnapshot, now: datetime, monotonic: float) -> None:
         """Step the motivation model with what the robot perceives and does."""
@@ -300,10 +300,18 @@ class Controller:
 
     # ------------------------------------------------------------------ what the tick leaves
 
-    def _record(self, now: datetime, urgent: bool) -> TickRecord:
+    def _record(
+        self, now: datetime, urgent: bool, snapshot: InputSnapshot | None = None
+    ) -> TickRecord:
         decisions = tuple(self.log.decisions)
         self.counters.decisions += len(decisions)
         self._last = record = self.build_record(now, urgent, decisions)
+        interactions = self.deps.interactions
+        if interactions is not None:  # what happened, for the sessions' interaction events
+            inputs = [event.message for event in snapshot.events] if snapshot else []
+            session = self.sessions.session
+            key = session.session_id if session is not None else None
+            self._barrier.run("interactions", None, interactions.observe, record, inputs, key)
         return record
 
     def build_record(
