@@ -95,7 +95,10 @@ class InteractionLog:
         session = self._session
         decisions: Sequence[Decision] = record.decisions
         if session is not None and session.user_id != user:
-            self._handle(session, inputs, record.decisions, now)
+            for message in inputs:
+                self._input(session, message, now)
+            session.offer = None  # the person left: an open offer was cut, not unanswered
+            self._handle(session, (), record.decisions, now)
             self._close(session, now, record.decisions)
             inputs, decisions = (), ()
             session = self._session = None

@@ -18,6 +18,7 @@ from typing import Any
 
 from dms.config import Settings
 from sim.baselines import ChooserName
+from sim.calibration import DEFAULT, Calibration
 from sim.population import Population
 from sim.prediction import Difference, bootstrap_ci, paired, run_seeds
 from sim.study import ProactivityLevel
@@ -40,6 +41,7 @@ def compare(
     chooser_b: ChooserName = "dms",
     seeds: Sequence[int] | None = None,
     population: Population = "paper",
+    calibration: Calibration = DEFAULT,
 ) -> dict[str, MetricComparison]:
     """Run both sides on the same seeds and participants; compare each metric (Table 4's
     and what the participants got: the true liking of the robot's choices, cancels per
@@ -61,6 +63,7 @@ def compare(
                 settings,
                 chooser=chooser,
                 population=population,
+                calibration=calibration,
                 progress=told,
             )
         )
