@@ -1,7 +1,7 @@
 """The interaction log: each session's events as a participant model needs them.
 
 When is this called? At the end of every tick (and of the shutdown), with the tick's
-record (its decisions, the session's user), the inputs it handled and the session's
+time, the session's user, the tick's decisions, the inputs it handled and the session's
 key. What does it do? It turns them into the events of :mod:`memory.interactions`:
 the session's arrival and departure, each offer (a menu, a question, a rating,
 "continue or stop?"), each input with its channel, the recogniser's confidence and its
@@ -21,13 +21,10 @@ import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from dms.kernel.messages import Decision, Request, ScreenChoice, Speech, Touch
 from memory.interactions import MAX_EVENTS
-
-if TYPE_CHECKING:
-    from dms.controller.state import TickRecord
 
 log = logging.getLogger(__name__)
 
@@ -87,19 +84,24 @@ class InteractionLog:
         self.min_confidence = min_confidence
         self._session: _Session | None = None
 
-    def observe(self, record: TickRecord, inputs: Sequence[object], key: str | None) -> None:
-        """One tick: its ``inputs`` (the messages it handled, in order), its record, and
-        the open session's ``key`` (None while its user is not stored)."""
-        user = record.user.id if record.user is not None else None
-        now = record.time
+    def observe(
+        self,
+        now: datetime,
+        user: str | None,
+        decisions: Sequence[Decision],
+        inputs: Sequence[object],
+        key: str | None,
+    ) -> None:
+        """One tick at ``now``: the session's user (None without a session), the tick's
+        decisions, its ``inputs`` (the messages it handled, in order) and the session's
+        ``key`` (None while its user is not stored)."""
         session = self._session
-        decisions: Sequence[Decision] = record.decisions
         if session is not None and session.user_id != user:
             for message in inputs:
                 self._input(session, message, now)
             session.offer = None  # the person left: an open offer was cut, not unanswered
-            self._handle(session, (), record.decisions, now)
-            self._close(session, now, record.decisions)
+            self._handle(session, (), decisions, now)
+            self._close(session, now, decisions)
             inputs, decisions = (), ()
             session = self._session = None
         if session is None and user is not None:

@@ -39,7 +39,7 @@ class ControllerDeps:
     scene: Scene | None = None
     """The frames behaviors aim at (the user's face, objects, the body); None: no gaze."""
     interactions: InteractionLog | None = None
-    """Told what each tick did (its record and inputs): the sessions' interaction events."""
+    """Told what each tick did (its decisions and inputs): the sessions' interaction events."""
 
 
 @dataclass

@@ -306,12 +306,12 @@ class Controller:
         decisions = tuple(self.log.decisions)
         self.counters.decisions += len(decisions)
         self._last = record = self.build_record(now, urgent, decisions)
-        interactions = self.deps.interactions
+        interactions, session = self.deps.interactions, self.sessions.session
         if interactions is not None:  # what happened, for the sessions' interaction events
+            user, key = (session.user_id, session.session_id) if session else (None, None)
             inputs = [event.message for event in snapshot.events] if snapshot else []
-            session = self.sessions.session
-            key = session.session_id if session is not None else None
-            self._barrier.run("interactions", None, interactions.observe, record, inputs, key)
+            observe = interactions.observe
+            self._barrier.run("interactions", None, observe, now, user, decisions, inputs, key)
         return record
 
     def build_record(
