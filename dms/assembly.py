@@ -142,7 +142,7 @@ def interaction_log(profiles: ProfileService, min_confidence: float) -> Interact
             "record_interactions", user_id, session_key, events, write_id=uuid.uuid4().hex
         )
 
-    return InteractionLog(write, min_confidence)
+    return InteractionLog(write, min_confidence, whole_sessions=not profiles.writer.threaded)
 
 
 def zone_of(timezone: str) -> zoneinfo.ZoneInfo:

@@ -11,8 +11,9 @@ published (``dms/decision``) and what perception sent: nothing of the controller
 inside, so the controller's refactoring leaves it be.
 
 The events of a tick go to ``write`` at once (the daemon's background writer: the tick
-never waits). A newcomer's session has no key until she is stored: her events wait
-here (at most :data:`HELD_MAX`), and are forgotten with her if she never is.
+never waits; the simulator writes each session's at its end). A newcomer's session has no
+key until she is stored: her events wait here (at most :data:`HELD_MAX`), and are
+forgotten with her if she never is.
 """
 
 from __future__ import annotations
@@ -78,10 +79,14 @@ class _Session:
 class InteractionLog:
     """Makes each session's interaction events from the ticks and hands them to ``write``."""
 
-    def __init__(self, write: Write, min_confidence: float) -> None:
-        """``min_confidence``: the speech the controller takes (``understood`` below it)."""
+    def __init__(self, write: Write, min_confidence: float, whole_sessions: bool = False) -> None:
+        """``min_confidence``: the speech the controller takes (``understood`` below it).
+        ``whole_sessions``: write a session's events when it ends, not each tick's (the
+        simulator: one write a session instead of one a tick, a fifth of a study's time;
+        no crash can lose them there)."""
         self.write = write
         self.min_confidence = min_confidence
+        self.whole_sessions = whole_sessions
         self._session: _Session | None = None
 
     def observe(
@@ -110,7 +115,8 @@ class InteractionLog:
         if session is not None:
             session.key = session.key or key
             self._handle(session, inputs, decisions, now)
-            self._flush(session)
+            if not self.whole_sessions or len(session.waiting) >= MAX_EVENTS:
+                self._flush(session)
 
     # ------------------------------------------------------------------ what happened
 
