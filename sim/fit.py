@@ -359,7 +359,8 @@ def fit(
         n = _count(name, group)
         value = point[name]
         source = (
-            f"fitted by dms sim fit from {origin}: {SOURCES[name]} ({n} of {len(group)} people)"
+            f"fitted by dms sim fit from {origin}: {SOURCES[name]}"
+            f" ({n} observations of {len(group)} people)"
         )
         if value is None:
             out.append(Fitted(name, None, (), n, source + "; too few to estimate"))
@@ -423,7 +424,10 @@ def write_participants(path: Path, fitted: Sequence[Fitted], persons: int, origi
         "inputs": {item.name: entry(item) for item in fitted},
     }
     try:
-        path.write_text(yaml.safe_dump(document, sort_keys=False, width=100), encoding="utf-8")
+        path.write_text(
+            yaml.safe_dump(document, sort_keys=False, width=100, default_flow_style=None),
+            encoding="utf-8",
+        )
     except OSError as error:
         raise SpecError(f"{path}: cannot write it ({error.strerror or error})") from None
 
