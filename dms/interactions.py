@@ -156,7 +156,7 @@ class InteractionLog:
                 "input",
                 channel="request",
                 value=message.action,
-                activity=message.activity,
+                activity=_name(message.activity),
                 by=(message.by or "request")[:64],
             )
 
@@ -177,7 +177,7 @@ class InteractionLog:
         if action == "ask":
             self._end_offer(session, now)
             kind = ASKS.get(decision.reason, "confirm")
-            self._offer(session, kind, name, now)
+            self._offer(session, kind, _name(name), now)
             return
         event = ACTIVITY_EVENTS.get(action)
         if event is None:
@@ -189,7 +189,8 @@ class InteractionLog:
         by: str | None = decision.chosen_by
         if action == "cancel":
             by = "user" if decision.reason in USER_STOPS else "robot"
-        self._add(session, now, event, activity=name, by=by, detail=(decision.reason or "")[:_TEXT])
+        detail = (decision.reason or "")[:_TEXT]
+        self._add(session, now, event, activity=_name(name), by=by, detail=detail)
         if action == "start" and name == "menu":
             self._offer(session, "menu", None, now)
 
@@ -244,3 +245,9 @@ class InteractionLog:
         events, session.waiting = session.waiting, []
         for start in range(0, len(events), MAX_EVENTS):  # a newcomer's held events
             self.write(session.user_id, session.key, events[start : start + MAX_EVENTS])
+
+
+def _name(activity: str | None) -> str | None:
+    """An activity's name as the store keeps it (at most 50 characters): a request may
+    name anything, and one long name must not get the whole tick's events refused."""
+    return activity[:50] if activity else None
