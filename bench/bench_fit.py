@@ -79,7 +79,13 @@ def main() -> None:
             if value is None or item.estimate is None:
                 continue
             hits[item.name].extend(item.covers(value))
-        print(f"bench_fit: replication {rep + 1}/{reps}", file=sys.stderr, flush=True)
+        so_far = [hit for values in hits.values() for hit in values]
+        print(
+            f"bench_fit: replication {rep + 1}/{reps}, coverage so far"
+            f" {sum(so_far) / max(1, len(so_far)):.3f}",
+            file=sys.stderr,
+            flush=True,
+        )
     every = [hit for values in hits.values() for hit in values]
     coverage = {name: round(sum(values) / len(values), 3) for name, values in hits.items()}
     print(
