@@ -7,16 +7,19 @@ message`` each, so that ``dms behavior check`` and a reload in the daemon agree
 behaviors used as states share userdata). The names a state gives the robot (frames,
 gestures...) are checked per file, by :mod:`activities.names`.
 
-A placeholder can be provided by a profile (``user``, ``robot``, ``env``: open, not
-checked), the activity's ``args`` (not checked), a content file (``content.FILE...``:
+A placeholder can be provided by a profile (``user``: a field of the profile model, an
+attribute the question bank fills or a ``set_param`` state sets; ``robot`` and ``env``:
+open, the daemon's ``params/robot`` and ``params/env`` may carry any name), the
+activity's ``args`` (not checked), a content file (``content.FILE...``:
 the file and its fields must exist) or a userdata key: declared in ``userdata``, or
 written by a state anywhere in the behavior (``set_data``, ``sample``, ``ask``,
 ``menu``, ``wait_event``, ``decide``, an iterator's ``item_key`` and ``index_key``), or
 named by a ``remapping``.
 Where a key's value comes from a content file (a sampled question, an iterated joke)
-its fields are known, and a misspelled field is found too. A placeholder with a
-default (``{user.name|my friend}``) is never a problem: the default is there for when
-nothing binds.
+its fields are known, and a misspelled field is found too. A default
+(``{user.name|my friend}``) is for a value not set yet (a key only some runs set, a free
+profile attribute); it does not excuse a misspelling: ``{user.nmae|there}`` would always
+say "there", so a name close to a known one is refused, default or not.
 """
 
 from __future__ import annotations
@@ -33,6 +36,11 @@ from activities.engine import read_content
 from activities.errors import BehaviorError
 from activities.spec import BehaviorSpec, StateSpec
 from activities.template import PLACEHOLDER, PROFILE_NAMESPACES, is_single_placeholder
+from memory.parameters import user_parameter_types
+
+OPEN_NAMESPACES = ("robot", "env", "args")
+"""Namespaces whose names are not known before the run."""
+USER = "user"
 
 # ---------------------------------------------------------------- shapes
 
@@ -173,13 +181,19 @@ class Bindings:
     def __init__(self, content: ContentShapes) -> None:
         self.content = content
         self.keys: dict[str, Shape] = {}
+        self.user: set[str] = set(user_parameter_types())
+        """The names ``{user.NAME}`` may bind: the profile's, and what ``set_param`` sets."""
 
     def resolve(self, path: str) -> Shape | Missing:
         """The shape ``{path}`` binds to, or why it binds to nothing."""
         parts = path.split(".")
         head = parts[0]
-        if head in PROFILE_NAMESPACES or head == "args":
+        if head in OPEN_NAMESPACES:
             return ANYTHING
+        if head == USER:
+            if len(parts) == 1 or parts[1] in self.user:
+                return ANYTHING
+            return Missing(1, tuple(sorted(self.user)), "has no field " + repr(parts[1]))
         if head == "content" and len(parts) >= 2:
             shape = self.content.shape(parts[1])
             if isinstance(shape, str):
@@ -268,6 +282,9 @@ def collect_keys(roots: Sequence[StateSpec], bind: Bindings) -> None:
     for state in states:  # names a remapping gives: whatever they stand for
         for key in (*state.remapping, *state.remapping.values()):
             bind.keys.setdefault(key, ANYTHING)
+        name = state.params.get("name")
+        if state.block == "set_param" and isinstance(name, str):
+            bind.user.add(name)
 
 
 # ---------------------------------------------------------------- placeholders
@@ -284,22 +301,36 @@ def _strings(value: Any) -> Iterator[str]:
             yield from _strings(item)
 
 
-def _message(path: str, missing: Missing) -> str:
+def _close(path: str, missing: Missing) -> str | None:
+    """The path with the name where it stops replaced by the closest known one, if any:
+    the spelling the designer most likely meant."""
+    parts = path.split(".")
+    at = parts[missing.depth] if missing.depth < len(parts) else ""
+    if not at or not missing.names:
+        return None
+    close = difflib.get_close_matches(at, list(missing.names), n=1, cutoff=0.6)
+    if not close:
+        return None
+    return ".".join([*parts[: missing.depth], close[0], *parts[missing.depth + 1 :]])
+
+
+def _message(path: str, missing: Missing, meant: str | None) -> str:
     parts = path.split(".")
     found = ".".join(parts[: missing.depth])
     at = parts[missing.depth] if missing.depth < len(parts) else ""
     subject = found if found else at
-    hint = ""
-    if at and missing.names:
-        close = difflib.get_close_matches(at, list(missing.names), n=1, cutoff=0.6)
-        if close:
-            fixed = ".".join([*parts[: missing.depth], close[0], *parts[missing.depth + 1 :]])
-            hint = f"; did you mean {{{fixed}}}?"
+    hint = f"; did you mean {{{meant}}}?" if meant else ""
+    if not meant and parts[0] == USER and missing.depth == 1:
+        hint = f" (a free attribute: give a default, {{{path}|...}}, for users without it)"
     return f"{{{path}}} binds to nothing: {subject} {missing.reason}{hint}"
 
 
 def state_placeholder_problems(state: StateSpec, bind: Bindings) -> list[tuple[str, str]]:
-    """``(parameter, message)`` for each placeholder of a state that binds to nothing."""
+    """``(parameter, message)`` for each placeholder of a state that binds to nothing.
+
+    One with a default is refused only when a known name is close to the one written:
+    a default stands in for a value not set yet (a key only some runs set, a free
+    profile attribute), not for a typo, which would always give the default."""
     if state.block in BLOCKS:
         bound = state.params
     elif state.block == "iterator":
@@ -311,11 +342,12 @@ def state_placeholder_problems(state: StateSpec, bind: Bindings) -> list[tuple[s
         for text in _strings(value):
             for match in PLACEHOLDER.finditer(text):
                 path, default = match.group(1), match.group(2)
-                if default is not None:
-                    continue
                 result = bind.resolve(path)
-                if isinstance(result, Missing):
-                    message = _message(path, result)
+                if not isinstance(result, Missing):
+                    continue
+                meant = _close(path, result)
+                if default is None or meant is not None:
+                    message = _message(path, result, meant)
                     found.append((param, f"{state.block}: parameter {param!r}: {message}"))
     return found
 

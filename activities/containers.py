@@ -145,7 +145,7 @@ class StateMachine(Container):
                 return self.fail("no active state")
             status = state.tick(now)
             if status is Status.RUNNING:
-                return Status.RUNNING
+                return status
             if status is Status.FAILED:
                 return self.fail(f"{state.name}: {state.error}")
             outcome = state.outcome or ""

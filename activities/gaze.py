@@ -18,13 +18,16 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 from datetime import datetime, timedelta
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from activities.context import ActivityContext
 from dms.kernel.body import JOINTS
 from dms.kernel.expression import CommandHandle
 from dms.kernel.frames import Located, UnknownFrame
 from dms.kernel.gaze import Attention, AttentionSettings
+
+if TYPE_CHECKING:
+    from activities.task_frames import TaskFrames
 
 USER = "user"
 """The frame of whoever is in front of the robot (the scene keeps it)."""
@@ -33,8 +36,13 @@ AIM_GRACE_S = 0.5
 """An aim is over this long after its turn should have ended, acknowledged or not."""
 
 
-def locate(ctx: ActivityContext, frame: str, now: datetime) -> Located | None:
-    """Where ``frame`` is now (live or last known), or None when it was never seen."""
+def locate(
+    ctx: ActivityContext, frame: str, now: datetime, tasks: TaskFrames | None = None
+) -> Located | None:
+    """Where ``frame`` is now (live or last known), or None when it was never seen;
+    ``tasks``: the activity's task frames, which ``frame`` may name."""
+    if tasks is not None and frame in tasks:
+        return tasks.locate(ctx.frames, frame, now)
     if ctx.frames is None:
         return None
     try:

@@ -26,10 +26,13 @@ from activities.containers import (
     Trigger,
 )
 from activities.context import ActivityContext
+from activities.declaration import count_problem, install_catalogue
 from activities.engine import Io, Node, Runtime, clear_content_cache
 from activities.errors import BehaviorError, UnknownBehavior
 from activities.gaze import GazeKeeper
 from activities.spec import BehaviorSpec, StateSpec, check_references, parse_file
+from activities.task_frames import TaskFrame, TaskFrames
+from dms.kernel.activity_names import Catalogue
 
 PACKAGE_DIR = Path(__file__).parent
 BEHAVIORS_DIR = PACKAGE_DIR / "behaviors"
@@ -70,6 +73,9 @@ def load_specs(directory: Path) -> tuple[dict[str, BehaviorSpec], list[str]]:
         specs[spec.name] = spec
     problems.extend(check_references(specs))
     problems.extend(_placeholder_problems(specs, directory))
+    declared = sum(spec.activity is not None for spec in specs.values())
+    if (too_many := count_problem(declared)) is not None:
+        problems.append(f"{directory}: {too_many}")
     return specs, problems
 
 
@@ -133,6 +139,8 @@ def reload_rules_and_behaviors(
     if rules is not None:
         found.extend(("rules", str(problem)) for problem in rules.reload())
     problems = library.reload()
+    if not problems:
+        library.install_catalogue()
     if problems:
         more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
         found.append(("behaviors", f"{problems[0]}{more}; keeping the previous behaviors"))
@@ -182,6 +190,15 @@ class BehaviorLibrary:
     def names(self) -> frozenset[str]:
         return frozenset(self._specs)
 
+    def declarations(self) -> dict[str, dict[str, Any]]:
+        """The behaviors declared activities: name, its ``activity:`` as written."""
+        return {n: s.activity for n, s in self._specs.items() if s.activity is not None}
+
+    def install_catalogue(self) -> Catalogue:
+        """Put in force the shipped activities plus the ones this library declares (the
+        daemon and the simulator at start, and after each reload that took)."""
+        return install_catalogue(self.declarations())
+
     def spec(self, name: str) -> BehaviorSpec:
         try:
             return self._specs[name]
@@ -210,10 +227,25 @@ class BehaviorLibrary:
         """A new, not yet started activity of behavior ``name``."""
         spec = self.spec(name)
         runtime = Runtime(ctx, args or {}, self.content_dirs())
+        runtime.task_frames = TaskFrames(self._task_frames(spec))
         root = self.build_root(spec, runtime)
         attend = spec.attention()
         gaze = None if attend is None else GazeKeeper(ctx, attend.frame, attend.settings())
         return Activity(name, root, runtime, gaze)
+
+    def _task_frames(self, spec: BehaviorSpec) -> dict[str, TaskFrame]:
+        """The task frames of ``spec`` and of the behaviors it runs as states (its own
+        win): they share one runtime."""
+        frames: dict[str, TaskFrame] = {}
+        seen, todo = {spec.name}, list(spec.references())
+        while todo:
+            name = todo.pop()
+            if name in seen or name not in self._specs:
+                continue
+            seen.add(name)
+            frames.update(self._specs[name].frames)
+            todo.extend(self._specs[name].references())
+        return {**frames, **spec.frames}
 
     def build_root(self, spec: BehaviorSpec, runtime: Runtime) -> Node:
         return self._build(spec.root, spec.name, runtime)

@@ -1,11 +1,13 @@
-"""Names a behavior gives the robot, checked at load: frames, gestures, LED patterns, faces.
+"""Names a behavior gives the robot, checked at load: frames, gestures, LED patterns, faces,
+and the texts it must be given.
 
 A state can name something the robot will never find: a frame that cannot exist (the
 state ends ``lost`` at once), a gesture, an LED pattern or a screen face the robot does
 not have (it does nothing visible). The loader refuses these per file, one message per
 parameter, against the frames that can exist and the robot's repertoire
 (:mod:`dms.kernel.repertoire`). A value with a placeholder is not checked here: it is
-known once bound.
+known once bound. A required text left empty (a ``speak`` with ``text: ""``) is refused
+too: the robot would say nothing, and nobody would know why.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import re
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from activities.blocks import BLOCKS
 from activities.gaze import USER
 from activities.template import PLACEHOLDER
 from dms.kernel.body import HEAD, LEFT_SHOULDER, NECK, RIGHT_SHOULDER, TORSO
@@ -70,7 +73,7 @@ def frame_problem(frame: str) -> str | None:
 def value_problems(block: str, params: Mapping[str, Any]) -> list[tuple[str, str]]:
     """``(parameter, message)`` for names in a state's parameters that the robot cannot
     know: a frame, a gesture, an LED pattern, a face. A placeholder is not checked here."""
-    found: list[tuple[str, str]] = []
+    found = empty_problems(block, params)
     key = FRAME_PARAMS.get(block)
     frame = params.get(key) if key is not None else None
     if key is not None and isinstance(frame, str) and not PLACEHOLDER.search(frame):
@@ -81,8 +84,25 @@ def value_problems(block: str, params: Mapping[str, Any]) -> list[tuple[str, str
         value = params.get(param)
         if block != named_block or not isinstance(value, str) or PLACEHOLDER.search(value):
             continue
+        if any(param == empty for empty, _ in found):
+            continue  # refused as empty already
         if value not in names:
             hint = _did_you_mean(value, names) or f" (the robot's: {', '.join(names)})"
             message = f"the robot has no {what} {value!r}{hint}"
             found.append((param, f"{block}: parameter {param!r}: {message}"))
+    return found
+
+
+def empty_problems(block: str, params: Mapping[str, Any]) -> list[tuple[str, str]]:
+    """``(parameter, message)`` for each required text of the block written empty (or
+    blank): a required parameter has no default because nothing can stand in for it."""
+    model = BLOCKS[block].PARAMS if block in BLOCKS else None
+    if model is None:
+        return []
+    found: list[tuple[str, str]] = []
+    for name, info in model.model_fields.items():
+        value = params.get(name)
+        if info.is_required() and isinstance(value, str) and not value.strip():
+            message = f"{block}: parameter {name!r} is empty: write it (it is required)"
+            found.append((name, message))
     return found

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from activities.blocks import BLOCKS, AttendParams, BlockParams, accepts_any_string
+from activities.declaration import declaration_schema
 from activities.spec import CONTAINER_PARAMS
 from activities.template import PLACEHOLDER
 
@@ -81,6 +82,7 @@ def json_schema() -> dict[str, Any]:
                 "additionalProperties": False,
             }
         )
+    triple = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "$id": "https://github.com/dms/activities/behavior.schema.json",
@@ -95,6 +97,23 @@ def json_schema() -> dict[str, Any]:
                 "(user, face:<id>, object:<name>) or the attend block's settings.",
                 "oneOf": [{"type": "string"}, _params_schema(AttendParams)],
             },
+            "frames": {
+                "description": "Task frames: places relative to a detected marker or object "
+                "(of), moved by xyz (metres) and rpy (radians); kept at their last known place "
+                "when the marker is lost. look_at, point_at and gesture aim at them by name.",
+                "type": "object",
+                "additionalProperties": {
+                    "type": "object",
+                    "properties": {
+                        "of": {"type": "string"},
+                        "xyz": triple,
+                        "rpy": triple,
+                    },
+                    "required": ["of"],
+                    "additionalProperties": False,
+                },
+            },
+            "activity": declaration_schema(),
             "outcomes": names,
             "initial": {"type": "string"},
             "userdata": {"type": "object"},

@@ -44,9 +44,11 @@ from activities.blocks import (
     BlockParams,
     param_problems,
 )
+from activities.declaration import declaration_problems
 from activities.engine import PREEMPTED
 from activities.errors import BehaviorError
-from activities.names import frame_problem, value_problems
+from activities.names import FRAME_PARAMS, frame_problem, value_problems
+from activities.task_frames import TaskFrame, close_task_frame, parse_frames
 from dms.kernel.yamlfile import Located, load_located, plain
 from dms.kernel.yamlfile import line_of_key as _line
 
@@ -56,7 +58,19 @@ MACHINES = ("state_machine", "sequence")
 GROUPS = (*MACHINES, "concurrence")
 """Containers with a ``states`` mapping."""
 STATE_KEYS = ("transitions", "input_keys", "output_keys", "remapping")
-TOP_KEYS = ("name", "description", "attend", "outcomes", "initial", "userdata", "states")
+TOP_KEYS = (
+    "name",
+    "description",
+    "activity",
+    "attend",
+    "frames",
+    "outcomes",
+    "initial",
+    "userdata",
+    "states",
+)
+AIMED = ("look_at", "point_at", "gesture")
+"""The blocks that may aim at a task frame (they locate their frame each time)."""
 
 
 class StateMachineParams(BlockParams):
@@ -212,6 +226,11 @@ class BehaviorSpec:
     attend: str | dict[str, Any] | None = None
     """``attend:`` at the top as written: the gaze kept on a frame while the behavior
     runs, a frame's name or :class:`activities.blocks.AttendParams`."""
+    frames: dict[str, TaskFrame] = field(default_factory=dict)
+    """``frames:`` at the top: the task frames its states may aim at, by name."""
+    activity: dict[str, Any] | None = None
+    """``activity:`` as written, checked: the behavior declared an activity
+    (:mod:`activities.declaration`); None: a behavior only."""
 
     @property
     def outcomes(self) -> list[str]:
@@ -228,8 +247,12 @@ class BehaviorSpec:
         out: dict[str, Any] = {"name": self.name}
         if "description" in self.present:
             out["description"] = self.description
+        if self.activity is not None:
+            out["activity"] = self.activity
         if self.attend is not None:
             out["attend"] = self.attend
+        if self.frames:
+            out["frames"] = {name: frame.to_dict() for name, frame in self.frames.items()}
         out["outcomes"] = self.root.params.get("outcomes")
         for key in ("initial", "userdata"):
             if key in self.root.params:
@@ -265,6 +288,8 @@ class _Checker:
     def __init__(self, where: str) -> None:
         self.where = where
         self.problems: list[str] = []
+        self.task_frames: frozenset[str] = frozenset()
+        """The task frames the behavior declares: names its aiming states may use."""
 
     def problem(self, line: int, path: str, message: str) -> None:
         at = f"{self.where}:{line}" if line else self.where
@@ -295,6 +320,13 @@ def parse_text(text: str, where: str, path: Path | None = None) -> BehaviorSpec:
     if description is not None and not isinstance(description, str):
         checker.problem(_line(data, "description"), "", "description must be a string")
     attend = _parse_attend(checker, data)
+    frames, frame_problems = parse_frames(plain(data.get("frames")))
+    held = data.get("frames")
+    for frame_name, problem in frame_problems:
+        at = _line(held, frame_name) if isinstance(held, Located) and frame_name in held else 0
+        checker.problem(at or _line(data, "frames"), "", problem)
+    checker.task_frames = frozenset(frames)
+    activity = _parse_activity(checker, data, name)
     body = {key: data[key] for key in ("outcomes", "initial", "userdata", "states") if key in data}
     located = Located(body)
     located.line, located.key_lines = data.line, data.key_lines
@@ -307,7 +339,18 @@ def parse_text(text: str, where: str, path: Path | None = None) -> BehaviorSpec:
         raise BehaviorError(first + more, checker.problems)
     assert root is not None
     present = tuple(k for k in ("description",) if k in data)
-    return BehaviorSpec(name, root, description, path, present, attend)
+    return BehaviorSpec(name, root, description, path, present, attend, frames, activity)
+
+
+def _parse_activity(checker: _Checker, data: Located, name: str) -> dict[str, Any] | None:
+    """The top ``activity:``, each problem at its line (:mod:`activities.declaration`)."""
+    if "activity" not in data:
+        return None
+    raw = data["activity"]
+    for key, message in declaration_problems(name, raw):
+        at = _line(raw, key) if key is not None and isinstance(raw, Located) else 0
+        checker.problem(at or _line(data, "activity"), "", message)
+    return dict(plain(raw)) if isinstance(raw, dict) else None
 
 
 def _parse_attend(checker: _Checker, data: Located) -> str | dict[str, Any] | None:
@@ -368,6 +411,12 @@ def _parse_state(
     if block in BLOCKS:
         checked = _check_params(checker, path, block, params, BLOCKS[block].PARAMS, line)
         for key, message in value_problems(block, checked):
+            aims = block in AIMED and key == FRAME_PARAMS.get(block)
+            if aims and checked.get(key) in checker.task_frames:
+                continue
+            meant = close_task_frame(checked.get(key), checker.task_frames) if aims else None
+            if meant is not None:
+                message = f"{block}: parameter {key!r}: no task frame {checked[key]!r}; {meant}"
             checker.problem(lines.get(key, line), path, message)
         return StateSpec(name, block, plain(checked), line=line, param_lines=lines)
     checked = _check_params(checker, path, block, params, CONTAINER_PARAMS[block], line)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import re
 
-from dms.kernel.activity_names import ACTIVITIES
+from dms.kernel.activity_names import ACTIVITIES, current
 
 SYNONYMS: dict[str, tuple[str, ...]] = {
     "multimedia": ("multimedia", "music", "song", "songs", "video", "videos", "photos", "film"),
@@ -57,6 +57,11 @@ def match_activity(text: str) -> str | None:
     exact = spoken.replace(" ", "_")
     if exact in ACTIVITIES:
         return exact
+    for entry in current().declared:  # a declared activity is also called by its menu name
+        if entry.label and re.search(
+            rf"(?<![\w']){re.escape(entry.label.lower())}(?![\w'])", spoken
+        ):
+            return entry.name
     for pattern, name in _PATTERNS:
         if pattern.search(spoken):
             return name

@@ -20,8 +20,9 @@ import typer
 from agenda.errors import AgendaError
 from agenda.items import ItemSpec, UpcomingItem
 from agenda.service import Agenda
+from dms.kernel.cli_options import DbOption, JsonOption
 from dms.kernel.clock import RealClock
-from memory.cli import DbOption, existing_url, print_table
+from memory.cli import existing_url, print_table
 
 app = typer.Typer(no_args_is_help=True)
 
@@ -53,7 +54,7 @@ def _agenda(db: str | None, check_users: bool = False) -> Iterator[Agenda]:
     url = _url(db)
     exists, close_store = _user_check(url) if check_users else (None, lambda: None)
     try:
-        agenda = Agenda(url, user_exists=exists)
+        agenda = Agenda.open(url, user_exists=exists)
         try:
             yield agenda
         finally:
@@ -83,7 +84,7 @@ def list_command(
     user: Annotated[str | None, typer.Option(help="Only this user's items.")] = None,
     db: DbOption = None,
     limit: Annotated[int, typer.Option(min=1, help="At most this many items.")] = 100,
-    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+    as_json: JsonOption = False,
 ) -> None:
     """List upcoming items with their next fire time, soonest first."""
     with _agenda(db) as agenda:
@@ -118,7 +119,7 @@ def add_command(
     lead: Annotated[int, typer.Option(help="Announce this many seconds early.")] = 0,
     grace: Annotated[int, typer.Option(help="Wait this many seconds for the user.")] = 600,
     db: DbOption = None,
-    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+    as_json: JsonOption = False,
 ) -> None:
     """Add a reminder (--reminder TEXT) or an event (--event ACTIVITY)."""
     if (reminder is None) == (event is None):
@@ -170,7 +171,7 @@ def remove_command(
 def missed_command(
     user: Annotated[str | None, typer.Option(help="Only this user's misses.")] = None,
     db: DbOption = None,
-    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+    as_json: JsonOption = False,
 ) -> None:
     """Show what was missed: the user was away, or the daemon was down, past the grace time."""
     with _agenda(db) as agenda:

@@ -100,38 +100,26 @@ class Agenda:
 
     def __init__(
         self,
-        url: str,
+        engine: Engine,
+        *,
+        claimer: str,
         user_exists: Callable[[str], bool] | None = None,
         background: bool = False,
-        journal: bool | None = None,
-        claimer: str | None = None,
+        journaled: bool = False,
         offline_delivery: bool | None = None,
         poll_s: float | None = POLL_S,
         unseen_misses: bool | None = None,
-        report: Callable[[str, str], None] | None = None,
-        spool_dir: Path | None = None,
     ) -> None:
-        """Open the agenda at ``url``, replay its journal and load every item.
-
-        ``journal``: keep deliveries and misses in the fsync'd journal until the database
-        has them (default: with ``background``, i.e. in the daemon). Only one process may
-        journal for a database: the command line never does.
-
-        ``claimer``: who claims occurrences, the robot's id (a robot restarted after a
-        claim delivers what it claimed); default: one made for this process.
-        ``offline_delivery``: deliver an occurrence that cannot be claimed because the
-        database is away (default: on a SQLite file only). ``poll_s``: between polls for
-        items added elsewhere, of the caller's clock (None: never). ``unseen_misses``:
-        record the misses of users this robot has not seen since the occurrence fell due
-        (default: on a SQLite file only; in a fleet each robot would write every miss of
-        every user again: the robot that next sees the user records them, from the
-        cursor in the database).
-
-        ``report``: where the writer's lines go (the daemon's ``dms/errors``; default: the
-        log); ``spool_dir``: a folder on another filesystem for the journal when the one
-        beside the database cannot be written.
-        """
-        self.claimer = claimer or f"{socket.gethostname()}-{os.getpid()}-{uuid.uuid4().hex[:8]}"
+        """The agenda's state in memory over ``engine``, empty and without its writer:
+        :meth:`open` makes one, then reads the database into it (see there for the
+        arguments). Nothing here touches the database or a file."""
+        self.claimer = claimer
+        self._engine = engine
+        self._sessions = sessionmaker(engine, expire_on_commit=False)
+        local = engine.dialect.name == "sqlite"
+        self._offline_delivery = local if offline_delivery is None else offline_delivery
+        self._unseen_misses = local if unseen_misses is None else unseen_misses
+        self._journaled = journaled
         self._claims = Claims()
         self._seen = SeenUsers()
         """When this robot last saw each user (perceived, or present at ``due``)."""
@@ -153,46 +141,93 @@ class Agenda:
         self._schedules = Schedules()
         self.problems: list[str] = []
         """Stored items that could not be loaded (bad spec, unknown zone), one line each."""
+        self._writer: Writer[dict[str, Any]]
+        """Writes deliveries and misses; :meth:`open` gives it (it calls :meth:`_write`)."""
+
+    @classmethod
+    def open(
+        cls,
+        url: str,
+        user_exists: Callable[[str], bool] | None = None,
+        background: bool = False,
+        journal: bool | None = None,
+        claimer: str | None = None,
+        offline_delivery: bool | None = None,
+        poll_s: float | None = POLL_S,
+        unseen_misses: bool | None = None,
+        report: Callable[[str, str], None] | None = None,
+        spool_dir: Path | None = None,
+    ) -> Agenda:
+        """Open the agenda at ``url``, replay its journal and load every item; AgendaError
+        (one line) when the database cannot be opened or is not the agenda's.
+
+        ``journal``: keep deliveries and misses in the fsync'd journal until the database
+        has them (default: with ``background``, i.e. in the daemon). Only one process may
+        journal for a database: the command line never does.
+
+        ``claimer``: who claims occurrences, the robot's id (a robot restarted after a
+        claim delivers what it claimed); default: one made for this process.
+        ``offline_delivery``: deliver an occurrence that cannot be claimed because the
+        database is away (default: on a SQLite file only). ``poll_s``: between polls for
+        items added elsewhere, of the caller's clock (None: never). ``unseen_misses``:
+        record the misses of users this robot has not seen since the occurrence fell due
+        (default: on a SQLite file only; in a fleet each robot would write every miss of
+        every user again: the robot that next sees the user records them, from the
+        cursor in the database).
+
+        ``report``: where the writer's lines go (the daemon's ``dms/errors``; default: the
+        log); ``spool_dir``: a folder on another filesystem for the journal when the one
+        beside the database cannot be written.
+        """
         try:
-            self._engine: Engine = make_engine(
-                url, BACKGROUND_BUSY_TIMEOUT_S if background else None
-            )
+            engine = make_engine(url, BACKGROUND_BUSY_TIMEOUT_S if background else None)
         except (SQLAlchemyError, OSError) as error:
             raise AgendaError(f"cannot open the agenda at {url}: {one_line(error)}") from None
-        self._journaled = background if journal is None else journal
-        self._writer: Writer[dict[str, Any]] = Writer(
-            self._write,
+        journaled = background if journal is None else journal
+        agenda = cls(
+            engine,
+            claimer=claimer or f"{socket.gethostname()}-{os.getpid()}-{uuid.uuid4().hex[:8]}",
+            user_exists=user_exists,
+            background=background,
+            journaled=journaled,
+            offline_delivery=offline_delivery,
+            poll_s=poll_s,
+            unseen_misses=unseen_misses,
+        )
+        agenda._writer = Writer(
+            agenda._write,
             writer.CODEC,
-            writer.journal_path(url, claimer) if self._journaled else None,
-            writer.quarantine_path(url, claimer) if self._journaled else None,
+            writer.journal_path(url, claimer) if journaled else None,
+            writer.quarantine_path(url, claimer) if journaled else None,
             report or _log_report,
             name="agenda writer",
             report_key="agenda",
             threaded=background,
             inline=False,
-            journal=self._journaled,
+            journal=journaled,
             batch=REPLAY_BATCH,
             spool_dir=spool_dir,
             database_file=sqlite_file(url) if background else None,
         )
         try:
-            prepare_schema(self._engine)
-            self._sessions = sessionmaker(self._engine, expire_on_commit=False)
-            local = self._engine.dialect.name == "sqlite"
-            self._offline_delivery = local if offline_delivery is None else offline_delivery
-            self._unseen_misses = local if unseen_misses is None else unseen_misses
-            self._replay_journal()
-            self._load(None)
-            self._apply_queued()
+            prepare_schema(engine)
+            agenda._replay_journal()
+            agenda._load(None)
+            agenda._apply_queued()
         except (SQLAlchemyError, OSError) as error:
-            self._writer.close()
-            self._engine.dispose()
+            agenda._abandon()
             raise AgendaError(f"cannot open the agenda at {url}: {one_line(error)}") from None
         except AgendaError:
-            self._writer.close()
-            self._engine.dispose()
+            agenda._abandon()
             raise
-        self._writer.start()
+        agenda._writer.start()
+        return agenda
+
+    def _abandon(self) -> None:
+        """The agenda did not open: release what it holds."""
+        self._writer.close()
+        self._background.shutdown()
+        self._engine.dispose()
 
     def _replay_journal(self) -> None:
         """At start: write what the journal holds (a crash's or an outage's), in order.

@@ -72,7 +72,7 @@ def main() -> None:
     users = [f"user{i:04d}" for i in range(args.users)]
     with tempfile.TemporaryDirectory() as folder:
         url = f"sqlite:///{Path(folder) / 'dms.db'}"
-        agenda = Agenda(url)
+        agenda = Agenda.open(url)
         t0 = time.perf_counter()
         count = 0
         for user in users:
@@ -84,7 +84,7 @@ def main() -> None:
         agenda.close()
 
         t0 = time.perf_counter()
-        agenda = Agenda(url, background=True)
+        agenda = Agenda.open(url, background=True)
         reopen_s = time.perf_counter() - t0
         t0 = time.perf_counter()
         agenda.recover(START)

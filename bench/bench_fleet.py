@@ -237,7 +237,7 @@ def run(url: str, args: argparse.Namespace) -> dict[str, Any]:
     seeder = ProfileStore(url)
     for user in users:
         seeder.get_or_create(user, START)
-    cli = Agenda(url, poll_s=None)  # the command line adds everyone's reminder
+    cli = Agenda.open(url, poll_s=None)  # the command line adds everyone's reminder
     for index, user in enumerate(users):
         offset = (index * 7) % args.every_s
         cli.add(
@@ -256,7 +256,7 @@ def run(url: str, args: argparse.Namespace) -> dict[str, Any]:
         Robot(
             name=f"robot{index:02d}",
             store=ProfileStore(url),
-            agenda=Agenda(url, claimer=f"robot{index:02d}", poll_s=args.poll_s),
+            agenda=Agenda.open(url, claimer=f"robot{index:02d}", poll_s=args.poll_s),
             plan=plan,
             meets=meets,
         )
@@ -305,7 +305,7 @@ def run(url: str, args: argparse.Namespace) -> dict[str, Any]:
     duplicates = sum(count - 1 for count in Counter(delivered).values() if count > 1)
     for robot in fleet:
         robot.agenda.close()
-    log = Agenda(url, poll_s=None)
+    log = Agenda.open(url, poll_s=None)
     logged = [(o.item_id, o.fire_time) for o in log.history(None, Outcome.DELIVERED)]
     log.close()
     writes = sum(robot.writes for robot in fleet)

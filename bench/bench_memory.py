@@ -72,7 +72,7 @@ def simulate(
         session_id = store.start_session(user, now)
         last: str | None = None
         for _ in range(ACTIVITIES_PER_SESSION):
-            name = chooser.choose(profile, rng, exclude={last} if last else ())
+            name = chooser.choose(profile, rng, exclude={last} if last else ()).activity
             liking = persona.liking[name]
             cancelled = liking < CANCEL_BELOW and rng.random() < 0.8
             ended = now + timedelta(minutes=2 if cancelled else 6)

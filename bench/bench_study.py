@@ -27,7 +27,7 @@ import time
 from typing import cast
 
 from sim.baselines import BASELINES, ChooserName
-from sim.compare import to_json
+from sim.compare import metrics_json
 from sim.prediction import PREREGISTERED_SEEDS, paired, role, run_seeds, summary
 from sim.study import study_settings
 
@@ -75,7 +75,7 @@ def main() -> None:
         "sessions": args.sessions,
         "population": args.population,
         "metrics": {k: {**e.to_json(), "role": role(k)} for k, e in estimates.items()},
-        "baselines": {name: to_json(paired(dms, run(name)))["metrics"] for name in baselines},
+        "baselines": {name: metrics_json(paired(dms, run(name))) for name in baselines},
     }
     out["wall_s"] = round(time.perf_counter() - wall, 1)
     print(json.dumps(out, indent=2))

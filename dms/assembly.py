@@ -196,6 +196,7 @@ def build_stack(
         library = BehaviorLibrary.load(settings.behaviors.folder)
     except BehaviorError as error:
         raise ConfigError(f"behaviors: {error}") from None
+    library.install_catalogue()  # the shipped activities and those the folder declares
     rules: LiveRules | None = None
     if settings.rules.files:
         # The rules language (its parser) loads only for a robot that has rules files.
@@ -328,7 +329,7 @@ def open_store_and_agenda(
         return profiles.met(user_id) or user_id in store.list_ids()
 
     try:
-        agenda = Agenda(
+        agenda = Agenda.open(
             url,
             user_exists=user_exists,
             background=background_io,

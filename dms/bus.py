@@ -12,6 +12,7 @@ from a Zenoh JSON5 file (which is also how a deployment turns on TLS and access 
 from __future__ import annotations
 
 import json
+import logging
 import re
 import threading
 from collections.abc import Callable, Mapping, Sequence
@@ -23,6 +24,8 @@ import zenoh
 from dms.kernel import keys
 from dms.kernel.errors import ConfigError
 from dms.rate_caps import DropTally
+
+log = logging.getLogger(__name__)
 
 DEFAULT_LISTEN = ("tcp/127.0.0.1:7447",)
 DEFAULT_CONNECT = "tcp/127.0.0.1:7447"
@@ -286,13 +289,23 @@ class ZenohBus:
         robot = self.robot_id
 
         def on_query(query: zenoh.Query) -> None:
-            key = keys.relative(robot, str(query.key_expr)) or ""
-            payload = query.payload.to_bytes() if query.payload is not None else None
-            ok, reply = handler(key, payload)
-            if ok:
-                query.reply(query.key_expr, encode(reply), encoding=JSON)
-            else:
-                query.reply_err(encode(reply), encoding=JSON)
+            # A query stays open until its object is dropped: an error on the way (kept
+            # alive by a traceback's frames) held the asker for its whole timeout. So
+            # every query is answered once and closed here, whatever happened.
+            try:
+                key = keys.relative(robot, str(query.key_expr)) or ""
+                payload = query.payload.to_bytes() if query.payload is not None else None
+                try:
+                    ok, reply = handler(key, payload)
+                except Exception as error:  # a bug: the asker gets one line, the log the rest
+                    log.exception("the query on %s failed", query.key_expr)
+                    ok, reply = False, {"error": f"internal error: {one_line(error)}"}
+                if ok:
+                    query.reply(query.key_expr, encode(reply), encoding=JSON)
+                else:
+                    query.reply_err(encode(reply), encoding=JSON)
+            finally:
+                query.drop()
 
         return on_query
 
@@ -310,13 +323,21 @@ class ZenohBus:
         assert self._session is not None
         self._token = self._session.liveliness().declare_token(self._key(keys.ALIVE_DMS))
 
-    def close(self) -> None:
+    def stop_listening(self) -> None:
+        """Withdraw ``alive/dms`` and stop hearing inputs and queries, keeping the
+        publishers: the first step of a stop, so that a flood still coming costs the
+        stopping daemon nothing while it publishes its last state."""
         with self._lock:
             if self._token is not None:
                 self._token.undeclare()
                 self._token = None
             for entity in self._entities:
                 entity.undeclare()
+            self._entities.clear()
+
+    def close(self) -> None:
+        self.stop_listening()
+        with self._lock:
             for publisher in self._publishers.values():
                 publisher.undeclare()
             self._entities.clear()

@@ -25,10 +25,13 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 import typer
 from typer.core import TyperCommand, TyperGroup
 
+from dms.face.cli import face_command
 from dms.fleet_cli import router as router_command
 from dms.foxglove_cli import foxglove as foxglove_command
+from dms.kernel.cli_options import DbOption
 from dms.kernel.errors import DmsError
 from dms.operator_cli import echo_command, request_command, state_command, topics_command
+from dms.reachy_cli import reachy as reachy_command
 from dms.ros2_cli import ros2 as ros2_command
 from dms.studio.cli import studio_command
 from dms.studio.cli import use_robot as use_studio_robot
@@ -136,15 +139,7 @@ def _db() -> None:
 
 @db_app.command("upgrade")
 def upgrade(
-    db: Annotated[
-        str | None,
-        typer.Option(
-            "--db",
-            envvar="DMS_DB",
-            help="SQLAlchemy database URL or SQLite file (default: the daemon's).",
-            show_default=False,
-        ),
-    ] = None,
+    db: DbOption = None,
 ) -> None:
     """Bring the database's schema (profiles and agenda) to the newest version.
 
@@ -308,8 +303,10 @@ SUB_APPS = (
 app.command("router")(router_command)
 app.command("foxglove")(foxglove_command)
 app.command("ros2")(ros2_command)
+app.command("reachy")(reachy_command)
 app.command("view")(view_command)
 app.command("studio")(studio_command)
+app.command("face")(face_command)
 use_studio_robot(_simulated_robot)  # the studio's trials drive the simulated Mini
 app.command("topics")(topics_command)
 app.command("echo")(echo_command)

@@ -1,6 +1,10 @@
 """The daemon's configuration: defaults, a TOML file, ``DMS_*`` environment variables,
 then command-line flags, each over the one before (docs/configuration.md).
 
+pydantic-settings layers them: :func:`load_config` builds the settings from three of its
+sources, the flags (its init source), the environment (its env source) and the file (an
+init source over the file's tables, as its TOML source is), merged table by table.
+
 Every setting has an environment variable: ``DMS_`` and its name in capitals, with
 ``__`` between a section and its field (``DMS_DB``, ``DMS_ROBOT_ID``,
 ``DMS_CONTROLLER__TICK_PERIOD_S``); lists and tables are JSON
@@ -17,11 +21,26 @@ import json
 import os
 import re
 from collections.abc import Sequence
+from functools import lru_cache
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
-from pydantic_settings import BaseSettings, EnvSettingsSource, SettingsConfigDict
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
+from pydantic_settings import (
+    BaseSettings,
+    EnvSettingsSource,
+    InitSettingsSource,
+    PydanticBaseSettingsSource,
+    SettingsConfigDict,
+    SettingsError,
+)
 
 from dms.kernel.errors import ConfigError
 from dms.kernel.keys import INPUT_KEYS, ROBOT_ID_RE
@@ -38,6 +57,15 @@ class ZenohSettings(_Section):
     listen: list[str] = Field(default_factory=lambda: ["tcp/127.0.0.1:7447"])
     connect: list[str] = Field(default_factory=list)
     config_file: Path | None = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _file_endpoints(cls, data: Any) -> Any:
+        """With a Zenoh configuration file and no ``listen`` given, the file's own
+        endpoints (tls/..., quic/...) stand instead of the default one."""
+        if isinstance(data, dict) and data.get("config_file") and "listen" not in data:
+            return {**data, "listen": []}
+        return data
 
 
 _STALE_AFTER_S: dict[str, float | None] = {
@@ -256,7 +284,7 @@ class Settings(_Section):
     @field_validator("robot_id")
     @classmethod
     def _robot_id(cls, value: str) -> str:
-        if not ROBOT_ID_RE.match(value):
+        if not ROBOT_ID_RE.fullmatch(value):
             raise ValueError(f"{value!r} does not match [a-z0-9_-]+")
         return value
 
@@ -265,18 +293,10 @@ ENV_PREFIX = "DMS_"
 ENV_NESTED = "__"
 
 
-class _Environment(BaseSettings, Settings):
-    """Only to tell pydantic-settings where :class:`Settings` is in the environment."""
-
-    model_config = SettingsConfigDict(
-        env_prefix=ENV_PREFIX, env_nested_delimiter=ENV_NESTED, extra="forbid"
-    )
-
-
 def environment() -> dict[str, Any]:
     """The settings ``DMS_*`` environment variables give, as nested raw values."""
     try:
-        found = EnvSettingsSource(_Environment)()
+        found = EnvSettingsSource(_layers(None, True))()
     except Exception as error:  # pydantic-settings' SettingsError: a JSON value is not JSON
         raise ConfigError(_not_json(error)) from None
     found.pop("source", None)
@@ -352,20 +372,49 @@ def _given(data: dict[str, Any], loc: Sequence[int | str]) -> bool:
     return True
 
 
-def _merge(base: dict[str, Any], top: dict[str, Any]) -> dict[str, Any]:
-    """``top`` over ``base``, table by table (a section's other fields stay)."""
-    merged = dict(base)
-    for key, value in top.items():
-        below = merged.get(key)
-        if isinstance(value, dict) and isinstance(below, dict) and key not in _WHOLE:
-            merged[key] = _merge(below, value)
-        else:
-            merged[key] = value
-    return merged
+class _TomlFile(InitSettingsSource):
+    """The settings of a TOML file, as pydantic-settings' own TOML source gives them (an
+    init source over the file's tables), read by :func:`read_toml` instead: a missing
+    file or a syntax error is one line naming the file, and the file's relative paths
+    are taken from its folder."""
+
+    def __init__(self, settings_cls: type[BaseSettings], path: Path) -> None:
+        data = read_toml(path)
+        _resolve_paths(data, path.parent)
+        super().__init__(settings_cls, data)
 
 
-_WHOLE = frozenset({"stale_after_s", "rate_cap_per_s", "user_initiative"})
-"""Tables that are values (a map of keys), replaced whole rather than merged."""
+@lru_cache(maxsize=16)
+def _layers(path: Path | None, use_environment: bool) -> type[BaseSettings]:
+    """The settings class whose keywords (the flags) are over the ``DMS_*`` environment
+    (if ``use_environment``), over the TOML file at ``path`` (if any), over the defaults.
+
+    One class for each file (the file is read each time the class is instantiated, so
+    a reload sees its changes); at most a few files are ever loaded in one process."""
+
+    class Layers(BaseSettings, Settings):
+        model_config = SettingsConfigDict(
+            env_prefix=ENV_PREFIX, env_nested_delimiter=ENV_NESTED, extra="forbid"
+        )
+
+        @classmethod
+        def settings_customise_sources(
+            cls,
+            settings_cls: type[BaseSettings],
+            init_settings: PydanticBaseSettingsSource,
+            env_settings: PydanticBaseSettingsSource,
+            dotenv_settings: PydanticBaseSettingsSource,
+            file_secret_settings: PydanticBaseSettingsSource,
+        ) -> tuple[PydanticBaseSettingsSource, ...]:
+            # the first source that gives a value wins; tables merge field by field
+            sources = [init_settings]
+            if use_environment:
+                sources.append(env_settings)
+            if path is not None:
+                sources.append(_TomlFile(settings_cls, path))
+            return tuple(sources)
+
+    return Layers
 
 
 def load_config(
@@ -385,12 +434,7 @@ def load_config(
     """The settings: defaults, then ``path`` (TOML) if given, then the ``DMS_*``
     environment variables (unless ``use_environment`` is False), then the flags that
     were set; each over the one before."""
-    data: dict[str, Any] = read_toml(path) if path is not None else {}
     where = str(path) if path is not None else "configuration"
-    if path is not None:
-        _resolve_paths(data, path.parent)
-    env = environment() if use_environment else {}
-    data = _merge(data, env)
     flags: dict[str, Any] = {
         "robot_id": robot_id,
         "db": db,
@@ -399,23 +443,26 @@ def load_config(
         "log_level": log_level,
         "log_format": log_format,
     }
-    data.update({name: value for name, value in flags.items() if value is not None})
-    zenoh = dict(data.get("zenoh") or {})
+    given = {name: value for name, value in flags.items() if value is not None}
+    zenoh: dict[str, Any] = {}
     if listen:
         zenoh["listen"] = list(listen)
     if connect:
         zenoh["connect"] = list(connect)
     if zenoh_config is not None:
         zenoh["config_file"] = zenoh_config
-    if zenoh.get("config_file") and "listen" not in zenoh:
-        zenoh["listen"] = []  # the file's own endpoints (tls/..., quic/...) stand
     if zenoh:
-        data["zenoh"] = zenoh
+        given["zenoh"] = zenoh
     try:
-        settings = Settings.model_validate(data)
+        layered = _layers(path, use_environment)(**given)
+    except SettingsError as error:  # a DMS_* list or table that is not JSON
+        raise ConfigError(_not_json(error)) from None
     except ValidationError as error:
+        env = environment() if use_environment else {}
         from_env = {name: value for name, value in env.items() if flags.get(name) is None}
         raise ConfigError(_describe(error, where, from_env)) from None
+    fields = {name: getattr(layered, name) for name in Settings.model_fields}
+    settings = Settings.model_construct(layered.model_fields_set, **fields)
     settings.source = path
     folder = settings.behaviors.folder
     if folder is not None and not folder.is_dir():

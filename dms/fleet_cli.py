@@ -11,22 +11,14 @@ from __future__ import annotations
 import json
 import signal
 import threading
-from pathlib import Path
 from typing import Annotated, Any
 
 import typer
 
 from dms.kernel import keys
+from dms.kernel.cli_options import ConnectOption, ZenohConfigOption
 
 app = typer.Typer(no_args_is_help=True, help="See and manage a fleet of robots.")
-
-ConnectOption = Annotated[
-    list[str] | None,
-    typer.Option(help="Zenoh endpoint to connect to (a router, or a daemon).", show_default=False),
-]
-ZenohConfigOption = Annotated[
-    Path | None, typer.Option("--zenoh-config", help="Zenoh JSON5 configuration file.")
-]
 
 
 def router(

@@ -5,10 +5,12 @@ A Zenoh client of the daemons (:class:`dms.bus.ZenohClient`) forwards each sampl
 served by foxglove-sdk's WebSocket server. Channels of the contract's messages carry
 their JSON Schema, so Foxglove's panels know the fields: a Plot of
 ``/robots/mini/dms/state.motivation.drives.rest`` draws a drive, a Raw Messages or
-Log panel shows ``dms/decision`` with its ``why``. Channels are made when a key first
-speaks, at most :data:`MAX_CHANNELS` at once (the one seen longest ago is closed);
-samples that are not JSON objects, or larger than :data:`MAX_MESSAGE_BYTES`, are counted
-and dropped.
+Log panel shows ``dms/decision`` with its ``why``. The daemon's outputs
+(:data:`OUTPUT_KEYS`) are advertised at start for the robot named (with ``--robot '*'``,
+for each robot when it first speaks), so a panel can subscribe before the first
+decision; other channels are made when a key first speaks, at most :data:`MAX_CHANNELS`
+at once (the one seen longest ago is closed); samples that are not JSON objects, or
+larger than :data:`MAX_MESSAGE_BYTES`, are counted and dropped.
 
 What the daemon keeps to itself unless ``[privacy]`` says otherwise stays out of
 Foxglove too, unless the bridge is told (``personal_data``): what people said or chose
@@ -54,6 +56,15 @@ PERSONAL_FIELDS = frozenset({"user_id", "text", "choice", "choices", "detail", "
 """Fields that carry a user id or free text (what the robot says, a decision's detail
 quoting the user), at any depth; a ``user`` object's ``id`` too."""
 HIDDEN = "(hidden)"
+
+OUTPUT_KEYS = (
+    keys.DMS_STATE,
+    keys.DMS_DECISION,
+    keys.DMS_ERRORS,
+    keys.DMS_BEHAVIOR,
+    keys.ROBOT_COMMAND,
+)
+"""What the daemon publishes: advertised before any of it is said."""
 
 MAX_CHANNELS = 256
 """Channels open at once; a key seen after them closes the one seen longest ago (a peer
@@ -102,7 +113,9 @@ class FoxgloveBridge:
     """Samples in, Foxglove channels out; one per process (``dms foxglove``).
 
     ``allowed_origins``: web origins allowed besides loopback ones (:class:`OriginGuard`);
-    ``personal_data``: forward what ``[privacy]`` holds back (the module's docstring).
+    ``personal_data``: forward what ``[privacy]`` holds back (the module's docstring);
+    ``every_robot``: it bridges every robot, and advertises the outputs of each one when
+    it first speaks (otherwise :meth:`advertise` names the robot).
     """
 
     def __init__(
@@ -113,6 +126,7 @@ class FoxgloveBridge:
         personal_data: bool = False,
         max_channels: int = MAX_CHANNELS,
         max_message_bytes: int = MAX_MESSAGE_BYTES,
+        every_robot: bool = False,
     ) -> None:
         import foxglove  # the SDK's native module loads only for this command
 
@@ -140,6 +154,9 @@ class FoxgloveBridge:
         self.max_channels = max_channels
         self.max_message_bytes = max_message_bytes
         self._lock = threading.Lock()
+        self.every_robot = every_robot
+        self._robots: set[str] = set()
+        """Robots whose outputs are advertised (at most ``max_channels``)."""
         self.forwarded = 0
         self.dropped = 0
         self.held_back = 0
@@ -152,8 +169,22 @@ class FoxgloveBridge:
         """The port Foxglove connects to (the guard's)."""
         return self.guard.port
 
+    def advertise(self, robot_id: str) -> None:
+        """Open the channels of ``robot_id``'s outputs (:data:`OUTPUT_KEYS`) now, before
+        they speak: Foxglove lists them at once, and a decision's channel is there to
+        subscribe to before the first decision."""
+        with self._lock:
+            if robot_id in self._robots or len(self._robots) >= self.max_channels:
+                return
+            self._robots.add(robot_id)
+        for output in OUTPUT_KEYS:
+            self._channel(keys.absolute(robot_id, output))
+
     def on_sample(self, key: str, payload: bytes) -> None:
         """Forward one Zenoh sample (``robots/<id>/<key>``); called from Zenoh's threads."""
+        parts = key.split("/", 2)
+        if self.every_robot and len(parts) == 3 and parts[0] == "robots":
+            self.advertise(parts[1])
         relative = _relative(key)
         if not self.personal_data and relative in HELD_BACK_KEYS:
             self.held_back += 1

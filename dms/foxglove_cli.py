@@ -4,23 +4,18 @@ from __future__ import annotations
 
 import signal
 import threading
-from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from dms.kernel import keys
+from dms.kernel.cli_options import ConnectOption, ZenohConfigOption
 from dms.kernel.errors import ConfigError
 
 
 def foxglove(
-    connect: Annotated[
-        list[str] | None,
-        typer.Option(help="Zenoh endpoint of a daemon or router (default tcp/127.0.0.1:7447)."),
-    ] = None,
-    zenoh_config: Annotated[
-        Path | None, typer.Option("--zenoh-config", help="Zenoh JSON5 configuration file.")
-    ] = None,
+    connect: ConnectOption = None,
+    zenoh_config: ZenohConfigOption = None,
     port: Annotated[
         int, typer.Option(help="WebSocket port for Foxglove.", min=0, max=65535)
     ] = 8765,
@@ -57,17 +52,21 @@ def foxglove(
     from dms.foxglove_bridge import FoxgloveBridge
 
     robot_id = robot_id if robot_id is not None else robot
-    if robot_id != "*" and not keys.ROBOT_ID_RE.match(robot_id):
+    if robot_id != "*" and not keys.ROBOT_ID_RE.fullmatch(robot_id):
         raise ConfigError(f"--robot {robot_id!r}: lower-case letters, digits, _ and - only")
     config = make_client_config(list(connect or []), zenoh_config)
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
     try:  # the port first: a port in use is said before any network wait
-        bridge = FoxgloveBridge(host, port, allow_origin or (), personal_data)
+        bridge = FoxgloveBridge(
+            host, port, allow_origin or (), personal_data, every_robot=robot_id == "*"
+        )
     except (RuntimeError, OSError) as error:
         raise ConfigError(f"--port {port}: {' '.join(str(error).split())}") from None
     try:
+        if robot_id != "*":
+            bridge.advertise(robot_id)
         with ZenohClient("foxglove", config) as client:
             client.subscribe_raw(f"robots/{robot_id}/**", bridge.on_sample)
             typer.echo(

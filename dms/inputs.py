@@ -38,7 +38,7 @@ MAX_PARAM_NAMES = 256
 is at most 64 characters and a text value 1,024 (:class:`ProfileParams`), so a module
 that makes up new names cannot grow the daemon past a few hundred kilobytes."""
 
-InputStatus = Literal["ok", "stale", "missing"]
+InputStatus = Literal["ok", "stale", "missing", "not_published"]
 
 
 class InputRejected(DmsError):
@@ -80,6 +80,7 @@ def _first_error(error: ValidationError) -> str:
 
 _EVENT_KEYS = frozenset(keys.EVENT_INPUTS)
 _OPTIONAL_KEYS = frozenset(keys.OPTIONAL_INPUTS)
+_PARAMS_KEYS = frozenset({keys.PARAMS_ROBOT, keys.PARAMS_ENV})
 
 
 @dataclass(slots=True)
@@ -215,8 +216,10 @@ class InputBoard:
         """The inputs for one tick; event inputs are handed over once.
 
         An input whose token went away is missing; a state input is missing until its
-        first message and stale once older than its limit; an event input is ok while
-        its token stands or once a message came."""
+        first message (a robot's or an environment's parameters, which many robots never
+        publish, are ``not_published`` until a message or a token comes) and stale once
+        older than its limit; an event input is ok while its token stands or once a
+        message came."""
         with self._lock:
             status: dict[str, InputStatus] = {}
             values: dict[str, BaseModel] = {}
@@ -227,6 +230,9 @@ class InputBoard:
                         continue
                 elif optional and slot.updated is None:
                     continue  # an optional input (objects, joints) no module provides
+                elif key in _PARAMS_KEYS and slot.updated is None:
+                    status[key] = "not_published"  # nobody ever said: not a fault
+                    continue
                 value, updated = slot.value, slot.updated
                 if value is None or updated is None:
                     status[key] = "missing"

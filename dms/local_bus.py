@@ -41,8 +41,13 @@ class InMemoryBus:
     def declare_alive(self) -> None:
         self.alive = True
 
-    def close(self) -> None:
+    def stop_listening(self) -> None:
         self.alive = False
+        self._on_input = self._on_liveliness = None
+        self._queries = {}
+
+    def close(self) -> None:
+        self.stop_listening()
 
     # ---------------------------------------------------------------- test side
 

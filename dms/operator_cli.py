@@ -24,18 +24,8 @@ from typing import Annotated, Any, Literal
 import typer
 
 from dms.kernel import keys
+from dms.kernel.cli_options import ConnectOption, RobotOption, ZenohConfigOption
 from dms.kernel.errors import ConfigError
-
-RobotIdOption = Annotated[str, typer.Option("--robot", "--robot-id", help="Robot id.")]
-ConnectOption = Annotated[
-    list[str] | None,
-    typer.Option(
-        help="Zenoh endpoint to connect to (repeat for more).", show_default="tcp/127.0.0.1:7447"
-    ),
-]
-ZenohConfigOption = Annotated[
-    Path | None, typer.Option("--zenoh-config", help="Zenoh JSON5 configuration file.")
-]
 
 
 class NothingSeen(ConfigError):
@@ -43,7 +33,7 @@ class NothingSeen(ConfigError):
 
 
 def _robot(robot_id: str) -> str:
-    if not keys.ROBOT_ID_RE.match(robot_id):
+    if not keys.ROBOT_ID_RE.fullmatch(robot_id):
         raise ConfigError(f"--robot: {robot_id!r} does not match [a-z0-9_-]+")
     return robot_id
 
@@ -132,7 +122,7 @@ def echo_command(
             show_default="until Ctrl-C",
         ),
     ] = None,
-    robot_id: RobotIdOption = "mini",
+    robot_id: RobotOption = "mini",
     connect: ConnectOption = None,
     zenoh_config: ZenohConfigOption = None,
 ) -> None:
@@ -140,11 +130,20 @@ def echo_command(
     expr = absolute_key(_robot(robot_id), key)
     messages: queue.Queue[tuple[str, bytes, float]] = queue.Queue()
     seen = 0
+    heard = KeysHeard(expr)
     with _stop_on_signals() as stop, _client(robot_id, connect, zenoh_config) as client:
         client.subscribe_raw(expr, lambda k, raw: messages.put((k, raw, time.time())))
+        if heard.robot is not None:
+            client.subscribe_raw(f"{ROBOTS_PREFIX}{heard.robot}/**", heard.on_sample)
         print(f"dms: echoing {expr}; Ctrl-C stops", file=sys.stderr, flush=True)
-        deadline = None if timeout is None else time.monotonic() + timeout
+        started = time.monotonic()
+        deadline = None if timeout is None else started + timeout
+        hint_at: float | None = started + ECHO_HINT_AFTER_S
         while not stop.is_set() and (count is None or seen < count):
+            if hint_at is not None and seen == 0 and time.monotonic() >= hint_at:
+                hint_at = None  # said once
+                if (hint := heard.hint(ECHO_HINT_AFTER_S)) is not None:
+                    print(f"dms: {hint}", file=sys.stderr, flush=True)
             wait = 0.2 if deadline is None else min(0.2, deadline - time.monotonic())
             if wait <= 0:
                 break
@@ -157,6 +156,57 @@ def echo_command(
                 return
     if seen == 0 and timeout is not None and not stop.is_set():
         raise NothingSeen(f"no message on {expr} within {timeout:g} s")
+
+
+ECHO_HINT_AFTER_S = 3.0
+"""How long ``dms echo`` waits for a first message before it says that nobody publishes
+an unknown key (a daemon publishes its state twice a second)."""
+MAX_KEYS_HEARD = 256
+PUBLISHED_KEYS = (
+    *keys.INPUT_KEYS,
+    keys.DMS_STATE,
+    keys.DMS_DECISION,
+    keys.DMS_ERRORS,
+    keys.DMS_BEHAVIOR,
+    keys.ROBOT_COMMAND,
+)
+"""The contract's keys under a robot: a key among them may just be quiet now."""
+
+
+class KeysHeard:
+    """The keys heard under the robot of an echoed key, to tell a typo from a quiet key."""
+
+    def __init__(self, expr: str) -> None:
+        self.expr = expr
+        parts = expr.split("/", 2)
+        plain = len(parts) == 3 and parts[0] == "robots" and "*" not in expr and "$" not in expr
+        self.robot: str | None = parts[1] if plain else None
+        """The robot of the key (None: a wildcard, which no hint is given for)."""
+        self.relative = parts[2] if plain else ""
+        self._lock = threading.Lock()
+        self._keys: set[str] = set()
+
+    def on_sample(self, key: str, _raw: bytes) -> None:
+        relative = key.split("/", 2)[2] if key.count("/") >= 2 else key
+        with self._lock:
+            if len(self._keys) < MAX_KEYS_HEARD:
+                self._keys.add(relative)
+
+    def hint(self, waited_s: float) -> str | None:
+        """The line for a key nobody publishes (the nearest known key); None when the key
+        is the contract's or was heard, or is a wildcard."""
+        from difflib import get_close_matches
+
+        with self._lock:
+            heard = set(self._keys)
+        if self.robot is None or self.relative in PUBLISHED_KEYS or self.relative in heard:
+            return None
+        known = sorted(heard | set(PUBLISHED_KEYS))
+        close = get_close_matches(self.relative, known, n=1, cutoff=0.5)
+        after = f"nothing on {self.expr} after {waited_s:g} s, and it is no key the daemon uses"
+        if close:
+            return f"{after}: did you mean {close[0]}?"
+        return f"{after}: `dms topics` lists the keys in use"
 
 
 def _format_message(key: str, raw: bytes, when: float, as_json: bool) -> str:
@@ -189,7 +239,7 @@ def topics_command(
         float, typer.Option(min=0.1, help="How long to listen for messages, in seconds.")
     ] = 2.0,
     as_json: Annotated[bool, typer.Option("--json", help="JSON on stdout.")] = False,
-    robot_id: RobotIdOption = "mini",
+    robot_id: RobotOption = "mini",
     connect: ConnectOption = None,
     zenoh_config: ZenohConfigOption = None,
 ) -> None:
@@ -252,7 +302,7 @@ def state_command(
     timeout: Annotated[
         float, typer.Option(min=0.1, help="How long to wait for the reply, in seconds.")
     ] = 5.0,
-    robot_id: RobotIdOption = "mini",
+    robot_id: RobotOption = "mini",
     connect: ConnectOption = None,
     zenoh_config: ZenohConfigOption = None,
 ) -> None:
@@ -364,7 +414,7 @@ def request_command(
     as_json: Annotated[
         bool, typer.Option("--json", help="Print the decisions as JSON, one a line.")
     ] = False,
-    robot_id: RobotIdOption = "mini",
+    robot_id: RobotOption = "mini",
     connect: ConnectOption = None,
     zenoh_config: ZenohConfigOption = None,
 ) -> None:
@@ -411,7 +461,7 @@ def build_request(action: str, activity: str | None, by: str) -> dict[str, Any]:
 
     from pydantic import ValidationError
 
-    from dms.kernel.activity_names import ACTIVITIES
+    from dms.kernel.activity_names import ACTIVITIES, NAME_PATTERN, SHIPPED, TWIN_CUTOFF
     from dms.kernel.messages import Request
 
     if action == "start" and activity is None:
@@ -419,13 +469,17 @@ def build_request(action: str, activity: str | None, by: str) -> dict[str, Any]:
     if action in ("pause", "resume", "reload") and activity is not None:
         raise ConfigError(f"{action} takes no activity (it acts on the one running)")
     if activity is not None and activity not in ACTIVITIES:
-        close = get_close_matches(activity, ACTIVITIES, n=1)
-        hint = f"; did you mean {close[0]}?" if close else f"; one of {', '.join(ACTIVITIES)}"
-        raise ConfigError(f"unknown activity {activity!r}{hint}")
+        # A near-twin of a shipped name is a typo (the loader refuses to declare one); any
+        # other well-formed name may be one the daemon's behaviors folder declares: it
+        # answers for it.
+        close = get_close_matches(activity, SHIPPED, n=1, cutoff=TWIN_CUTOFF)
+        if close or not NAME_PATTERN.match(activity):
+            hint = f"; did you mean {close[0]}?" if close else f"; one of {', '.join(ACTIVITIES)}"
+            raise ConfigError(f"unknown activity {activity!r}{hint}")
     wire = "reload_rules" if action == "reload" else action
     payload = {"action": wire, "activity": activity, "by": by}
-    try:
-        Request.model_validate(payload)
+    try:  # an activity unknown here is the daemon's to check
+        Request.model_validate(payload if activity in ACTIVITIES else {**payload, "activity": None})
     except ValidationError as error:
         first = error.errors(include_url=False)[0]
         where = ".".join(str(part) for part in first["loc"])
@@ -499,6 +553,10 @@ class RequestAnswer:
         error, where = str(report.get("error", "")), report.get("key")
         wire = "reload_rules" if self.action == "reload" else self.action
         if where == keys.REQUEST and error.startswith(f"{wire} by {self.by}:"):
+            raise Refused(f"refused: {error.split(':', 1)[1].strip()}")
+        if where == keys.REQUEST and error.startswith(
+            f"activity: unknown activity {self.activity!r}"
+        ):
             raise Refused(f"refused: {error.split(':', 1)[1].strip()}")
         if self.action == "reload" and where in RELOAD_ERROR_KEYS:
             raise Refused(f"reload kept the old version: {where}: {error}")

@@ -128,6 +128,11 @@ class ProfileService:
         found = self.ask(_FIND, user_id, wait_s=wait_s)
         return found if isinstance(found, bool) else None
 
+    def meet_newcomer(self, user_id: str | None) -> None:
+        """``user_id`` is in front of the robot, not stored yet (None: nobody is): the
+        agenda takes items for her meanwhile (:meth:`met`)."""
+        self.newcomer = user_id
+
     def met(self, user_id: str) -> bool:
         """The robot has met ``user_id`` in this run: their profile exists, or is being
         written, or they are in front of the robot not yet stored (:attr:`newcomer`); the

@@ -17,7 +17,9 @@ thread, dropped at exit).
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import queue
 import threading
 import time
 from collections.abc import Callable
@@ -50,8 +52,11 @@ class Reloader:
         self._deadline_s = deadline_s
         self._busy = threading.Event()
         self._report = report
-        self._wanted = threading.Event()
-        self._stopped = threading.Event()
+        self._calls: queue.SimpleQueue[None] = queue.SimpleQueue()
+        """One word a request or the stop: a ``SimpleQueue``'s ``put`` is reentrant, so
+        SIGHUP's handler can ask while the main thread is inside the queue's own code (a
+        ``threading.Event`` there deadlocks on its lock)."""
+        self._stopped = False
         self._thread = threading.Thread(target=self._run, name="dms-reload", daemon=True)
         self.requests = 0
         self.reloads = 0
@@ -61,17 +66,27 @@ class Reloader:
         self._thread.start()
 
     def request(self) -> None:
-        """Ask for a reload; coalesced with every other request not yet served."""
+        """Ask for a reload; coalesced with every other request not yet served. Safe in
+        a signal handler: it only enqueues."""
         self.requests += 1
-        self._wanted.set()
+        self._calls.put(None)
 
     def _run(self) -> None:
         last_start = -self._min_interval_s
         while True:
-            self._wanted.wait()
-            if self._stopped.wait(last_start + self._min_interval_s - time.monotonic()):
+            self._calls.get()
+            # Not before the interval is over; what comes meanwhile joins this reload.
+            while (
+                not self._stopped
+                and (wait := last_start + self._min_interval_s - time.monotonic()) > 0
+            ):
+                with contextlib.suppress(queue.Empty):
+                    self._calls.get(timeout=wait)
+            with contextlib.suppress(queue.Empty):
+                while True:
+                    self._calls.get_nowait()
+            if self._stopped:
                 return
-            self._wanted.clear()
             last_start = time.monotonic()
             watch = threading.Timer(self._deadline_s, self._overdue)
             watch.daemon = True
@@ -85,7 +100,7 @@ class Reloader:
             finally:
                 watch.cancel()
                 self._busy.clear()
-            if self._stopped.is_set():  # the daemon is closing: nowhere to report to
+            if self._stopped:  # the daemon is closing: nowhere to report to
                 return
             with self._idle:
                 self.reloads += 1
@@ -97,7 +112,7 @@ class Reloader:
 
     def _overdue(self) -> None:
         """The watch's timer: this reload is past its deadline (it goes on regardless)."""
-        if self._stopped.is_set():
+        if self._stopped:
             return
         log.warning("reload still running after %g s", self._deadline_s)
         self._report(
@@ -114,8 +129,8 @@ class Reloader:
     def stop(self, timeout_s: float = 1.0) -> None:
         """Stop the worker; an idle one ends at once. A reload under way is not waited
         for: it finishes in its own time, or is dropped at exit (a daemon thread)."""
-        self._stopped.set()
-        self._wanted.set()
+        self._stopped = True
+        self._calls.put(None)
         if self._busy.is_set():
             log.info("stopping during a reload: not waiting for it")
         elif self._thread.is_alive():

@@ -38,7 +38,7 @@ from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 from dms.kernel.errors import ConfigError
 from dms.kernel.keys import ROBOT_ID_RE
 
-ROLES = ("dms", "perception", "robot", "app", "admin")
+ROLES = ("dms", "perception", "robot", "app", "admin", "face")
 """``dms`` is the daemon; the others are the programs around it."""
 
 DEFAULT_LISTEN = "tls/127.0.0.1:7447"
@@ -47,7 +47,7 @@ CA_DAYS = 3650
 CERT_DAYS = 825
 """A role certificate's validity; ``docs/security.md`` says how to rotate one."""
 
-_ENDPOINT_RE = re.compile(r"^tls/(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9.-]+):(?P<port>\d{1,5})$")
+_ENDPOINT_RE = re.compile(r"tls/(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9.-]+):(?P<port>\d{1,5})")
 
 Flow = Literal["ingress", "egress"]
 Message = Literal[
@@ -126,6 +126,16 @@ GRANTS: dict[str, tuple[Grant, ...]] = {
         *_watch_daemon(),
     ),
     "app": (*_app(), *_watch_daemon()),
+    # dms face: a person's perception in, what the robot says and shows and the daemon's
+    # state and decisions out; no personal data (the picker then lists nobody).
+    "face": (
+        *_input_module(("perception/**",)),
+        Grant("subscribe-command", "egress", ("declare_subscriber",), ("robot/command",)),
+        Grant("receive-command", "ingress", ("put",), ("robot/command",)),
+        Grant("subscribe-dms", "egress", ("declare_subscriber",), ("dms/state", "dms/decision")),
+        Grant("receive-dms", "ingress", ("put",), ("dms/state", "dms/decision")),
+        *_watch_daemon(),
+    ),
     "admin": (
         *_app(),
         # Reading a profile or an agenda, and changing an agenda (a query with a payload).
@@ -149,14 +159,14 @@ def common_name(role: str, robot_id: str) -> str:
 
 
 def check_robot_id(robot_id: str) -> str:
-    if not ROBOT_ID_RE.match(robot_id):
+    if not ROBOT_ID_RE.fullmatch(robot_id):
         raise ConfigError(f"bad robot id {robot_id!r}: use lower-case letters, digits, _ and -")
     return robot_id
 
 
 def parse_listen(endpoint: str) -> tuple[str, int]:
     """(host, port) of a ``tls/HOST:PORT`` endpoint; ConfigError otherwise."""
-    match = _ENDPOINT_RE.match(endpoint)
+    match = _ENDPOINT_RE.fullmatch(endpoint)
     port = int(match.group("port")) if match else 0
     if match is None or not 0 < port < 65536:
         raise ConfigError(

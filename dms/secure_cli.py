@@ -12,13 +12,15 @@ from typing import Annotated
 
 import typer
 
+from dms.kernel.cli_options import RobotOption
+
 app = typer.Typer(no_args_is_help=True)
 
 
 @app.command()
 def init(
     directory: Annotated[Path, typer.Argument(help="Where to write the CA, keys and configs.")],
-    robot_id: Annotated[str, typer.Option("--robot-id", help="The robot these files are for.")],
+    robot_id: RobotOption,
     listen: Annotated[
         str | None,
         typer.Option(
@@ -28,7 +30,7 @@ def init(
     ] = None,
     force: Annotated[bool, typer.Option(help="Replace files already in DIRECTORY.")] = False,
 ) -> None:
-    """A CA and, per role (dms, perception, robot, app, admin), a key, certificate and
+    """A CA and, per role (dms, perception, robot, app, admin, face), a key, certificate and
     Zenoh config with mutual TLS and access control. See docs/security.md."""
     from dms.secure import DEFAULT_LISTEN
     from dms.secure import init as write
@@ -45,7 +47,7 @@ def init(
 @app.command()
 def renew(
     directory: Annotated[Path, typer.Argument(help="A folder written by `dms secure init`.")],
-    role: Annotated[str, typer.Argument(help="dms, perception, robot, app or admin.")],
+    role: Annotated[str, typer.Argument(help="dms, perception, robot, app, admin or face.")],
 ) -> None:
     """A new key and certificate for ROLE from the same CA (a leaked key, an expiry)."""
     from dms.secure import renew as write

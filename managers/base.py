@@ -14,13 +14,13 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime
 from enum import StrEnum
 from typing import Any
 
 from activities import Activity, ActivityContext, ActivityStatus, BehaviorLibrary
-from dms.kernel.activity_names import ACTIVITIES, ManagerName
+from dms.kernel.activity_names import ACTIVITIES, ManagerName, current
 from dms.kernel.messages import ScreenChoice, Speech, Touch
 
 log = logging.getLogger(__name__)
@@ -156,8 +156,14 @@ class Manager:
         return reply
 
     def pause(self, now: datetime) -> ManagerReply:
+        """Pause the activity; one declared not pausable is stopped instead (its reply
+        is final, CANCELLED, and the manager is free)."""
         if self._activity is None:
             return ManagerReply(self.name, None, ManagerStatus.REFUSED, detail="nothing to pause")
+        entry = current().entry(self._activity_name or "")
+        if entry is not None and not entry.pausable:
+            reply = self.cancel(now)
+            return replace(reply, detail="it cannot be paused: stopped")
         self._activity.pause(now)
         return self._reply(ManagerStatus.PAUSED)
 

@@ -12,6 +12,11 @@ that is not on disk tries a place again now and then (:meth:`Backlog.retry`, wit
 doubling wait), so when space returns everything waiting is on disk again. A backlog
 made without a path (a process that keeps no spool: the command line) is memory only.
 
+A full disk is the usual reason the database fails, and then its spool beside it cannot
+be written either. So the backlog keeps :data:`RESERVE_BYTES` allocated beside the spool
+while nothing waits, and frees it for the spool when no place takes the writes: the
+writes that wait are on disk, and survive an exit, without ``[storage] spool_dir``.
+
 No method raises on a disk error: the backlog is the writer's last line, and the writer
 must never die of it. Not thread-safe: the writer serializes calls.
 """
@@ -26,8 +31,9 @@ import time
 from collections import deque
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TextIO
+from typing import IO, Any
 
+from dms.kernel.files import open_nofollow
 from memory.errors import one_line
 from memory.spool import MAX_BINDS, open_spool, write_spool
 
@@ -38,6 +44,10 @@ MEMORY_BOUND = 10_000
 (the default of ``[storage] memory_bound``)."""
 RETRY_S = (0.25, 8.0)
 """First and longest wait between two tries to put a backlog kept in memory on disk."""
+RESERVE_BYTES = 4 << 20
+"""Disk space kept beside the spool for it (a ``.reserve`` file), given up to the spool
+when the disk is full: room for more writes than the memory bound holds (a profile
+write is a few hundred bytes), so that a full disk loses none at exit by default."""
 
 
 class Backlog:
@@ -50,13 +60,16 @@ class Backlog:
         memory_bound: int = MEMORY_BOUND,
         check: Callable[[dict[str, Any]], bool] | None = None,
         clock: Callable[[], float] = time.monotonic,
+        reserve: int = RESERVE_BYTES,
     ) -> None:
         """``path``: the spool beside the database; ``spare_dir``: a folder on another
         filesystem for a spool of the same name when ``path`` cannot be written.
         ``check``: whether a spooled entry read back is a write (the others are kept
-        aside in a ``.bad`` file). ``clock``: seconds, for the waits between retries."""
+        aside in a ``.bad`` file). ``clock``: seconds, for the waits between retries.
+        ``reserve``: bytes kept beside ``path`` for the spool (0: none)."""
         self.path = path
         self.places = [] if path is None else [path]
+        self._reserve = None if path is None or reserve <= 0 else Reserve(path, reserve)
         if path is not None and spare_dir is not None:
             self.places.append(spare_dir / path.name)
         self.memory_bound = memory_bound
@@ -70,7 +83,7 @@ class Backlog:
         """(spool file, unreadable lines, the ``.bad`` file keeping them or None when it
         could not be written) found at start."""
         self._clock = clock
-        self._file: TextIO | None = None
+        self._file: IO[Any] | None = None
         self._at: Path | None = None
         self._on_disk = True
         """Every pending entry is in the file at :attr:`_at` (or nothing is pending)."""
@@ -88,6 +101,7 @@ class Backlog:
             self._settle()
         else:
             self._remove_files()
+            self._keep_reserve()
 
     # ------------------------------------------------------------------ state
 
@@ -181,6 +195,7 @@ class Backlog:
             self._on_disk = True
             self._failures.clear()
             self._said = self.path
+            self._keep_reserve()
         elif self._file is not None:
             self._write([{"done": count}])
         else:
@@ -230,12 +245,37 @@ class Backlog:
         self._tell(f"cannot read the spool {place} ({one_line(error)}); it is left as it is")
 
     def _settle(self) -> None:
-        """Write the whole backlog to the first place that takes it; memory when none does."""
+        """Write the whole backlog to the first place that takes it, with the space kept
+        for it when the disk is full; memory when none does."""
         self._close_file()
+        if self._try_places():
+            return
+        if self._reserve is not None and self._reserve.release():
+            self._tell(
+                f"no spool can be written ({self._failed_places()}): the "
+                f"{self._reserve.size >> 20} MiB kept for it in {self._reserve.path} "
+                "are given to it"
+            )
+            self._failures.clear()
+            if self._try_places():
+                return
+        self._at, self._on_disk = None, False
+        self._retry_at = self._clock() + self._wait
+        self._wait = min(self._wait * 2, RETRY_S[1])
+        if self._said is not None:
+            self._said = None
+            self._tell(
+                f"no spool can be written ({self._failed_places()}): "
+                f"{len(self.pending)} waiting write(s) are kept in memory only "
+                f"(at most {self.memory_bound}) until a spool can be written"
+            )
+
+    def _try_places(self) -> bool:
+        """Write the whole backlog to the first place that takes it; whether one did."""
         for place in self.places:
             try:
                 write_spool(place, self.pending, self.binds)
-                self._file = place.open("a", encoding="utf-8")
+                self._file = open_nofollow(place, "a")
             except OSError as error:
                 self._close_file()
                 self._failures[place] = one_line(error)
@@ -250,17 +290,8 @@ class Backlog:
                     f"({self._failed_places(but=place) or 'it can be written again'})"
                 )
             self._failures.pop(place, None)
-            return
-        self._at, self._on_disk = None, False
-        self._retry_at = self._clock() + self._wait
-        self._wait = min(self._wait * 2, RETRY_S[1])
-        if self._said is not None:
-            self._said = None
-            self._tell(
-                f"no spool can be written ({self._failed_places()}): "
-                f"{len(self.pending)} waiting write(s) are kept in memory only "
-                f"(at most {self.memory_bound}) until a spool can be written"
-            )
+            return True
+        return False
 
     def _write(self, lines: list[dict[str, Any]]) -> None:
         """Append to the open file; a failure moves the backlog to the next place."""
@@ -293,6 +324,15 @@ class Backlog:
         if keep is None:
             self._at = None
 
+    def _keep_reserve(self) -> None:
+        """Nothing waits: allocate the space for the next outage's spool again (one line
+        when it cannot be, and one when it can again)."""
+        if self._reserve is None:
+            return
+        news = self._reserve.keep()
+        if news is not None:
+            self._tell(news)
+
     def _remember(self, key: str, value: int) -> None:
         self.binds[key] = value
         if len(self.binds) > MAX_BINDS:
@@ -304,3 +344,48 @@ class Backlog:
     def _tell(self, line: str) -> None:
         """A line for the owner to report (the daemon logs and publishes it)."""
         self._news.append(line)
+
+
+class Reserve:
+    """Disk space kept for a spool: a file of ``size`` allocated bytes beside it."""
+
+    def __init__(self, spool: Path, size: int) -> None:
+        self.path = spool.with_name(spool.name + ".reserve")
+        self.size = size
+        self._missing: str | None = None
+        """Why the space could not be kept, while it cannot (said once)."""
+
+    def keep(self) -> str | None:
+        """Allocate the space unless it is; a line to report when that fails for the
+        first time, or succeeds again after a failure."""
+        try:
+            if self.path.is_symlink() or not self.path.is_file():
+                with open_nofollow(self.path, "wb") as out:
+                    os.posix_fallocate(out.fileno(), 0, self.size)
+                    os.fsync(out.fileno())
+        except OSError as error:
+            with contextlib.suppress(OSError):
+                self.path.unlink(missing_ok=True)
+            if self._missing is None:
+                self._missing = one_line(error)
+                return (
+                    f"cannot keep {self.size >> 20} MiB for the spool in {self.path} "
+                    f"({self._missing}): on a full disk, waiting writes would be kept in "
+                    "memory only"
+                )
+            return None
+        if self._missing is not None:
+            self._missing = None
+            return f"{self.size >> 20} MiB are kept for the spool in {self.path} again"
+        return None
+
+    def release(self) -> bool:
+        """Free the space for the spool; whether there was any."""
+        try:
+            self.path.unlink()
+        except FileNotFoundError:
+            return False
+        except OSError as error:
+            log.warning("cannot free the space kept for the spool (%s): %s", self.path, error)
+            return False
+        return True

@@ -23,6 +23,7 @@ from sqlalchemy import Engine
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import ArgumentError, SQLAlchemyError
 
+from dms.kernel.cli_options import DbOption
 from memory import migrations
 from memory.db import as_url, default_url, make_engine
 from memory.errors import ProfileError, one_line
@@ -32,15 +33,6 @@ from memory.store import ProfileStore
 
 app = typer.Typer(no_args_is_help=True)
 
-DbOption = Annotated[
-    str | None,
-    typer.Option(
-        "--db",
-        envvar="DMS_DB",
-        help="SQLAlchemy database URL or SQLite file (default: the daemon's).",
-        show_default=False,
-    ),
-]
 UserArgument = Annotated[str, typer.Argument(help="The user id.")]
 
 

@@ -17,6 +17,9 @@ from platformdirs import user_data_dir, user_state_dir
 from sqlalchemy import Engine, create_engine, event
 from sqlalchemy.engine import make_url
 
+from dms.kernel.files import LinkRefused, refuse_link
+from memory.errors import ProfileError
+
 SQLITE_BUSY_TIMEOUT_MS = 5000
 
 
@@ -83,6 +86,7 @@ def make_engine(url: str, busy_timeout_s: float | None = None, **kwargs: Any) ->
     if parsed.get_backend_name() == "sqlite":
         database = parsed.database
         if database and database != ":memory:":
+            refuse_links(Path(database).expanduser())
             Path(database).expanduser().parent.mkdir(parents=True, exist_ok=True)
         timeout_ms = round(
             SQLITE_BUSY_TIMEOUT_MS if busy_timeout_s is None else busy_timeout_s * 1000
@@ -95,6 +99,16 @@ def make_engine(url: str, busy_timeout_s: float | None = None, **kwargs: Any) ->
         event.listen(engine, "connect", pragmas)
         return engine
     return create_engine(url, pool_pre_ping=True, **kwargs)
+
+
+def refuse_links(database: Path) -> None:
+    """ProfileError when the SQLite file or one of its own files (``-wal``, ``-shm``,
+    ``-journal``) is a symbolic link: SQLite would write through it."""
+    for path in (database, *(Path(f"{database}{end}") for end in ("-wal", "-shm", "-journal"))):
+        try:
+            refuse_link(path)
+        except LinkRefused as error:
+            raise ProfileError(str(error)) from None
 
 
 def dialect_module(dialect: str) -> Any:

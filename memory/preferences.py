@@ -37,7 +37,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from dms.kernel.activity_names import ENTERTAINMENT_ACTIVITIES
+from dms.kernel.activity_names import (
+    SHIPPED_ENTERTAINMENT,
+    ActivityEntry,
+    Catalogue,
+    current,
+)
 from memory.profile import ActivityScore, Profile
 from memory.seed_data import FEATURE_COLUMNS, SEED_CSV
 
@@ -46,7 +51,9 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-ACTIVITIES: tuple[str, ...] = ENTERTAINMENT_ACTIVITIES
+ACTIVITIES: tuple[str, ...] = SHIPPED_ENTERTAINMENT
+"""What the pairwise model ranks: the shipped entertainment activities, those the seed
+personas rated. A declared activity's first guess is :func:`first_guess`."""
 PAIRS: tuple[tuple[int, int], ...] = tuple(itertools.combinations(range(len(ACTIVITIES)), 2))
 
 Features = Mapping[str, Any]
@@ -240,6 +247,35 @@ class PreferenceModel:
         return sorted(names, key=lambda name: -scores[name])
 
 
+FIRST_GUESS_LOW = 0.3
+FIRST_GUESS_HIGH = 0.7
+"""A declared activity's first guess runs from LOW (the user matches none of the
+features it names) to HIGH (all of them): a guess worth :data:`PRIOR_STRENGTH`
+observations, which the user's own ratings soon outweigh."""
+
+
+def _matches(feature: str, wanted: tuple[str | int | bool, ...], value: Any) -> bool:
+    if feature == "age" and len(wanted) == 2 and isinstance(value, int | float):
+        low, high = wanted
+        return isinstance(low, int) and isinstance(high, int) and low <= value <= high
+    if isinstance(value, int | float):  # bool is an int: true and false match as such
+        return value in wanted
+    return str(value).strip().lower() in wanted
+
+
+def first_guess(entry: ActivityEntry, features: Features) -> float:
+    """How much a user of ``features`` may like the declared activity ``entry`` before
+    any evidence: the share of its named features the user matches, between
+    :data:`FIRST_GUESS_LOW` and :data:`FIRST_GUESS_HIGH`; 0.5 when the user has none of
+    them (nothing to go on, as for a shipped activity and an unknown user)."""
+    known = [(name, wanted) for name, wanted in entry.features.items() if name in features]
+    known = [(name, wanted) for name, wanted in known if features[name] is not None]
+    if not known:
+        return 0.5
+    share = sum(_matches(n, w, features[n]) for n, w in known) / len(known)
+    return FIRST_GUESS_LOW + (FIRST_GUESS_HIGH - FIRST_GUESS_LOW) * share
+
+
 @cache
 def _seed_model() -> PreferenceModel:
     return PreferenceModel.fit(load_seed())
@@ -301,7 +337,8 @@ def posterior(prior_mean: float, score: ActivityScore | None) -> Vector:
 
 @dataclass(frozen=True, slots=True)
 class ChoiceDraw:
-    """The random draws behind one :meth:`ActivityChooser.choose`, for its explanation."""
+    """What one :meth:`ActivityChooser.choose` picked and the random draws behind it,
+    for the decision's explanation."""
 
     activity: str
     """What was picked."""
@@ -317,6 +354,9 @@ class ChoiceDraw:
     novelty pick."""
     novelty_probability: float = NOVELTY_PROBABILITY
     """The novelty coin's threshold."""
+    explained: bool = True
+    """False for another chooser put in this one's place (a study's baseline): its
+    draws are its own, and only ``activity`` and ``candidates`` say anything."""
 
     @property
     def novelty(self) -> bool:
@@ -357,13 +397,11 @@ class ActivityChooser:
         self._training: threading.Thread | None = None
         self._last_retrain: datetime | None = None
         self._last_beliefs: (
-            tuple[Profile, PreferenceModel, dict[str, tuple[float, float]]] | None
+            tuple[Profile, PreferenceModel, dict[str, tuple[float, float]], Catalogue] | None
         ) = None
-        """The last profile asked about, the model that answered and its beliefs: a
-        choice asks twice (to choose, then to explain), of the same frozen profile."""
-        self.last_draw: ChoiceDraw | None = None
-        """What drew the last :meth:`choose` (a new object at every choice): the
-        decision's ``why`` names it."""
+        """The last profile asked about, the model that answered, its beliefs and the
+        catalogue they cover: a choice asks twice (to choose, then to explain), of the
+        same frozen profile."""
 
     def session_ended(self, now: datetime) -> bool:
         """When a user leaves: retrain if none ran for :attr:`retrain_every_s`.
@@ -411,22 +449,36 @@ class ActivityChooser:
             training.join(timeout)
         return training is None or not training.is_alive()
 
+    def priors(
+        self, model: PreferenceModel, profile: Profile, catalogue: Catalogue | None = None
+    ) -> dict[str, float]:
+        """Per entertainment activity of ``catalogue`` (default: the one in force), the
+        first guess of the user's liking: the model's prediction from features, a
+        declared activity's :func:`first_guess`."""
+        features = profile.features()
+        prior = model.win_scores(features) or dict.fromkeys(ACTIVITIES, 0.5)
+        catalogue = catalogue or current()
+        for entry in catalogue.declared:
+            if entry.name in catalogue.entertainment:
+                prior[entry.name] = first_guess(entry, features)
+        return {name: prior[name] for name in catalogue.entertainment}
+
     def posteriors(self, profile: Profile) -> dict[str, Vector]:
         """Per activity, the belief about the user's liking over :data:`GRID`: the
         prediction from features as the prior, updated with the user's own evidence."""
-        prior = self.model.win_scores(profile.features()) or dict.fromkeys(ACTIVITIES, 0.5)
-        return {name: posterior(prior[name], profile.scores.get(name)) for name in ACTIVITIES}
+        prior = self.priors(self.model, profile)
+        return {name: posterior(mean, profile.scores.get(name)) for name, mean in prior.items()}
 
     def beliefs(self, profile: Profile) -> dict[str, tuple[float, float]]:
         """Per activity, Beta(alpha, beta) with the mean and spread of the belief about how
         much the user likes it (:meth:`posteriors`): alpha / (alpha + beta) is the
         expected liking. Without evidence it is the prior itself."""
-        model, last = self.model, self._last_beliefs
-        if last is not None and last[0] is profile and last[1] is model:
+        model, last, catalogue = self.model, self._last_beliefs, current()
+        if last is not None and last[0] is profile and last[1] is model and last[3] is catalogue:
             return dict(last[2])
-        prior = model.win_scores(profile.features()) or dict.fromkeys(ACTIVITIES, 0.5)
+        prior = self.priors(model, profile, catalogue)
         out = {}
-        for name in ACTIVITIES:
+        for name in prior:
             score = profile.scores.get(name)
             if score is None or not score.evidence:
                 m = min(0.95, max(0.05, prior[name]))
@@ -437,18 +489,21 @@ class ActivityChooser:
             spread = max(float(belief @ (GRID - mean) ** 2), 1e-6)
             size = max(mean * (1.0 - mean) / spread - 1.0, 1e-3)
             out[name] = (mean * size, (1.0 - mean) * size)
-        self._last_beliefs = (profile, model, out)
+        self._last_beliefs = (profile, model, out, catalogue)
         return dict(out)
 
     def ranking(self, profile: Profile, rng: random.Random) -> list[str]:
         """The blended ranking (expected liking), best first; ties at random."""
         means = {name: a / (a + b) for name, (a, b) in self.beliefs(profile).items()}
-        names = list(ACTIVITIES)
+        names = list(means)
         rng.shuffle(names)
         return sorted(names, key=lambda name: -means[name])
 
-    def choose(self, profile: Profile, rng: random.Random, exclude: Collection[str] = ()) -> str:
-        """One activity not in ``exclude``; what drew it is left in :attr:`last_draw`.
+    def choose(
+        self, profile: Profile, rng: random.Random, exclude: Collection[str] = ()
+    ) -> ChoiceDraw:
+        """One activity not in ``exclude``, with the draws that picked it (the decision's
+        ``why`` names them).
 
         With probability :data:`NOVELTY_PROBABILITY` one the user never did; otherwise
         the best of one draw from each belief (Thompson sampling, from the Beta of the
@@ -457,15 +512,13 @@ class ActivityChooser:
         """
         # ``profile`` is the controller's cached one, kept current by the store's writer:
         # the tick never reads the database here.
-        names = [name for name in ACTIVITIES if name not in exclude] or list(ACTIVITIES)
+        beliefs = self.beliefs(profile)  # one catalogue for the whole choice, even mid-reload
+        every = list(beliefs)
+        names = [name for name in every if name not in exclude] or every
         untried = [name for name in names if name not in profile.scores]
         coin = rng.random() if untried else None  # the novelty coin, only while one is untried
         if coin is not None and coin < NOVELTY_PROBABILITY:
-            pick = rng.choice(untried)
-            self.last_draw = ChoiceDraw(pick, tuple(names), tuple(untried), coin, None)
-            return pick
-        beliefs = self.beliefs(profile)
+            return ChoiceDraw(rng.choice(untried), tuple(names), tuple(untried), coin, None)
         draws = {name: rng.betavariate(*beliefs[name]) for name in names}
         pick = max(names, key=lambda name: draws[name])
-        self.last_draw = ChoiceDraw(pick, tuple(names), tuple(untried), coin, draws)
-        return pick
+        return ChoiceDraw(pick, tuple(names), tuple(untried), coin, draws)

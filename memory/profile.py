@@ -103,7 +103,9 @@ ALIASES = {"gender": "sex", "favoriteroom": "favorite_room"}
 have a ``favoriteroom``)."""
 
 RESERVED = frozenset({"id", "user_id", "likes", "created_at", "updated_at", "version", "write_id"})
-ATTRIBUTE_NAME = re.compile(r"^[a-z][a-z0-9_]{0,49}$")
+ATTRIBUTE_NAME = re.compile(r"[a-z][a-z0-9_]{0,49}")
+"""An attribute name, matched whole (``fullmatch``: with ``$`` a name ending in a line
+break would pass)."""
 MAX_ATTRIBUTES = 100
 
 
@@ -131,7 +133,7 @@ def validate_fields(fields: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str
             except ValueError as error:
                 raise ProfileError(f"{name}: {error} (got {value!r:.60})") from None
             continue
-        if name in RESERVED or not ATTRIBUTE_NAME.match(name):
+        if name in RESERVED or not ATTRIBUTE_NAME.fullmatch(name):
             raise ProfileError(
                 f"{name!r:.60}: not a profile field name (lower case letters, digits and _, "
                 "not id, user_id, likes, version, write_id)"

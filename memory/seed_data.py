@@ -16,7 +16,7 @@ import random
 from dataclasses import dataclass
 from pathlib import Path
 
-from dms.kernel.activity_names import ENTERTAINMENT_ACTIVITIES
+from dms.kernel.activity_names import SHIPPED_ENTERTAINMENT
 
 SEED_CSV = Path(__file__).resolve().parent / "data" / "seed_rankings.csv"
 FEATURE_COLUMNS = ("age", "sex", "education", "occupation", "hobbies", "lives_alone")
@@ -92,7 +92,7 @@ def make_persona(rng: random.Random) -> SimulatedPersona:
         "lives_alone": lives_alone,
     }
     liking = {}
-    for index, name in enumerate(ENTERTAINMENT_ACTIVITIES):
+    for index, name in enumerate(SHIPPED_ENTERTAINMENT):
         logit = (
             _BASE[index]
             + _PER_DECADE_OLDER[index] * (age - 75) / 10

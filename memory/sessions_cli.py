@@ -20,8 +20,9 @@ from typing import Annotated, Any, Literal
 
 import typer
 
+from dms.kernel.cli_options import DbOption
 from dms.kernel.session_metrics import METRIC_KEYS
-from memory.cli import DbOption, existing_url
+from memory.cli import existing_url
 from memory.interactions import COLUMNS as EVENT_COLUMNS
 from memory.store import ProfileStore
 

@@ -33,6 +33,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from dms.kernel.files import open_nofollow
+
 log = logging.getLogger(__name__)
 
 MAX_BINDS = 1000
@@ -80,7 +82,7 @@ def read_spool(path: Path, check: Callable[[dict[str, Any]], bool] | None = None
     OSError only when the file cannot be read at all.
     """
     contents = SpoolContents()
-    with path.open("rb") as lines:
+    with open_nofollow(path, "rb") as lines:
         for raw in lines:
             if not raw.strip():
                 continue
@@ -125,7 +127,7 @@ def keep_aside(path: Path, lines: Iterable[bytes]) -> Path:
     fsync'd; returns that file. Raises OSError when it cannot be written."""
     bad = bad_file(path)
     new = not bad.exists()
-    with bad.open("ab") as out:
+    with open_nofollow(bad, "ab") as out:
         out.write(b"".join(line if line.endswith(b"\n") else line + b"\n" for line in lines))
         out.flush()
         os.fsync(out.fileno())
@@ -141,7 +143,7 @@ def write_spool(path: Path, entries: Iterable[dict[str, Any]], binds: dict[str, 
     """
     temporary = path.with_name(path.name + ".tmp")
     try:
-        with temporary.open("w", encoding="utf-8") as out:
+        with open_nofollow(temporary, "w") as out:
             for key, value in binds.items():
                 out.write(json.dumps({"bind": key, "id": value}) + "\n")
             for entry in entries:
@@ -189,7 +191,7 @@ class Quarantine:
 
     def add(self, entry: dict[str, Any]) -> None:
         new = not self.path.exists()
-        with self.path.open("a", encoding="utf-8") as out:
+        with open_nofollow(self.path, "a") as out:
             out.write(json.dumps(entry) + "\n")
             out.flush()
             os.fsync(out.fileno())
@@ -202,10 +204,10 @@ class Quarantine:
         if not self.path.exists():
             return []
         out = []
-        with self.path.open(encoding="utf-8") as lines:
+        with open_nofollow(self.path, "rb") as lines:
             for line in lines:
                 try:
                     out.append(json.loads(line))
-                except json.JSONDecodeError:
+                except ValueError:  # a torn line, or bytes that are not UTF-8
                     continue
         return out

@@ -6,6 +6,10 @@ system's learned choice (``dms``), or a baseline that shows what the learning ad
 
 - ``random``: any activity, uniformly;
 - ``fixed``: the activities in a fixed cycle, the same for everyone;
+- ``popular``: the activity the learner's training data likes best that was not just
+  done, the same for everyone (what a designer would ship without any learning);
+- ``greedy``: the daemon's own learned ranking, its best (expected liking) that was not
+  just done, with no random draw;
 - ``least_liked``: the participant's true worst (a floor: it reads the hidden truth);
 - ``oracle``: the participant's true favourite (a ceiling: it reads the hidden truth).
 
@@ -22,14 +26,24 @@ from collections.abc import Callable, Collection
 from typing import TYPE_CHECKING, Literal
 
 from dms.kernel.activity_names import ENTERTAINMENT_ACTIVITIES
+from memory.preferences import ChoiceDraw
+from sim.adaptation import population_ranking
 
 if TYPE_CHECKING:
     from memory import ActivityChooser
     from memory.profile import Profile
     from sim.harness import Simulation
 
-ChooserName = Literal["dms", "random", "fixed", "least_liked", "oracle"]
-CHOOSERS: tuple[ChooserName, ...] = ("dms", "random", "fixed", "least_liked", "oracle")
+ChooserName = Literal["dms", "random", "fixed", "popular", "greedy", "least_liked", "oracle"]
+CHOOSERS: tuple[ChooserName, ...] = (
+    "dms",
+    "random",
+    "fixed",
+    "popular",
+    "greedy",
+    "least_liked",
+    "oracle",
+)
 BASELINES: tuple[ChooserName, ...] = CHOOSERS[1:]
 Truth = Callable[[str], dict[str, float] | None]
 """A participant's hidden liking of each activity, by user id (None: unknown)."""
@@ -49,11 +63,18 @@ class BaselineChooser:
     def __getattr__(self, attribute: str) -> object:
         return getattr(self.inner, attribute)
 
-    def choose(self, profile: Profile, rng: random.Random, exclude: Collection[str] = ()) -> str:
-        """One entertainment activity not in ``exclude``, by the baseline's rule."""
+    def choose(
+        self, profile: Profile, rng: random.Random, exclude: Collection[str] = ()
+    ) -> ChoiceDraw:
+        """One entertainment activity not in ``exclude``, by the baseline's rule; its
+        draws are its own (the decision's ``why`` names none)."""
         names = [n for n in ENTERTAINMENT_ACTIVITIES if n not in exclude] or list(
             ENTERTAINMENT_ACTIVITIES
         )
+        pick = self._pick(profile, names)
+        return ChoiceDraw(pick, tuple(names), (), None, None, explained=False)
+
+    def _pick(self, profile: Profile, names: list[str]) -> str:
         if self.name == "random":
             return self.rng.choice(names)
         if self.name == "fixed":
@@ -62,6 +83,10 @@ class BaselineChooser:
                 self._turn += 1
                 if pick in names:
                     return pick
+        if self.name == "popular":
+            return next(name for name in population_ranking() if name in names)
+        if self.name == "greedy":
+            return next(name for name in self.inner.ranking(profile, self.rng) if name in names)
         liking = self.truth(profile.user_id) or {}
         best = sorted(names, key=lambda n: (liking.get(n, 0.5), self.rng.random()))
         return best[0] if self.name == "least_liked" else best[-1]

@@ -15,14 +15,19 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import typer
 
+from dms.kernel.cli_options import (
+    DEFAULT_ENDPOINT,
+    ConnectOption,
+    DbOption,
+    JsonOption,
+    RobotOption,
+)
 from sim.errors import ExpectationFailed, SimError
 
 if TYPE_CHECKING:
     from dms.config import Settings
 
 app = typer.Typer(no_args_is_help=True)
-
-DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 
 
 def _print_json(payload: object) -> None:
@@ -44,7 +49,7 @@ def _stop_on_signals() -> threading.Event:
 @app.command("run")
 def run_command(
     scenario: Annotated[str, typer.Argument(help="Scenario file (or a shipped scenario's name).")],
-    as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
+    as_json: JsonOption = False,
 ) -> None:
     """Replay a scripted session on the virtual clock; exit 1 naming the first failed check."""
     from sim.runner import run_scenario
@@ -117,7 +122,7 @@ RulesOption = Annotated[
 ]
 
 
-ChooserOption = Literal["dms", "random", "fixed", "least_liked", "oracle"]
+ChooserOption = Literal["dms", "random", "fixed", "popular", "greedy", "least_liked", "oracle"]
 PopulationOption = Literal["paper", "personas", "heldout"]
 
 
@@ -292,11 +297,17 @@ def compare_command(
     population: Annotated[
         PopulationOption, typer.Option(help="The participants (as dms sim study's).")
     ] = "paper",
+    repeat: Annotated[
+        int,
+        typer.Option(
+            min=1, max=100, help="Visits of each participant; every metric is also given per visit."
+        ),
+    ] = 1,
     participants: ParticipantsOption = None,
-    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+    as_json: JsonOption = False,
 ) -> None:
     """Run two designs or choosers on the same participants; per metric, both means and
-    the paired difference (B - A) with a bootstrap 95 % interval."""
+    the paired difference (B - A) with a bootstrap 95 % interval, pooled and per visit."""
     from sim.compare import compare, table, to_json
     from sim.study import study_settings
 
@@ -305,7 +316,7 @@ def compare_command(
     calibration = _calibration(participants)
     chosen = _seeds(seeds)
     runs = len(chosen) if chosen is not None else 1
-    with _progress(2 * sessions * runs, "sessions (A, then B)") as told:
+    with _progress(2 * sessions * repeat * runs, "sessions (A, then B)") as told:
         done = {"A": 0, "B": 0}
 
         def progress(label: str, count: int) -> None:
@@ -324,6 +335,7 @@ def compare_command(
             seeds=chosen,
             population=population,
             calibration=calibration,
+            repeat=repeat,
         )
     if as_json:
         _print_json(to_json(result))
@@ -337,10 +349,7 @@ def fit_command(
         Path | None,
         typer.Argument(help="An events table: dms sessions export --events --format csv."),
     ] = None,
-    db: Annotated[
-        str | None,
-        typer.Option("--db", help="Read the events from this database (a URL or a SQLite path)."),
-    ] = None,
+    db: DbOption = None,
     since: Annotated[
         str | None, typer.Option("--since", help="With --db: sessions from this date (ISO, UTC).")
     ] = None,
@@ -351,7 +360,7 @@ def fit_command(
         int, typer.Option(min=50, max=100000, help="Resamples of the people.")
     ] = 400,
     seed: Annotated[int, typer.Option(help="Seed of the resampling.")] = 0,
-    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+    as_json: JsonOption = False,
 ) -> None:
     """Estimate the simulated participants' inputs (delays, patience, speech, proactivity)
     from recorded sessions, each with its bootstrap interval; write a participants file."""
@@ -379,7 +388,7 @@ def fit_command(
 def sensitivity_command(
     sessions: Annotated[int, typer.Option(min=2, max=10000, help="Participants.")] = 30,
     minutes: Annotated[float, typer.Option(min=0.5, max=24 * 60, help="Session length.")] = 30.0,
-    seeds: SeedsOption = "0-2",
+    seeds: SeedsOption = "0-9",
     change: Annotated[
         float, typer.Option(min=0.01, max=0.99, help="Move each input by this share.")
     ] = 0.5,
@@ -389,19 +398,19 @@ def sensitivity_command(
     out: Annotated[
         Path, typer.Option("--out", help="Folder for sensitivity.csv and sensitivity.png.")
     ] = Path("sensitivity"),
-    as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+    as_json: JsonOption = False,
 ) -> None:
-    """Move each participant input of sim/calibration.py by ±50 % and show which Table 4
-    metric moves with it (a CSV and a tornado chart)."""
-    from sim.calibration import PARTICIPANT_INPUTS
-    from sim.sensitivity import sweep, write_csv, write_tornado
+    """Move each input of the study (the participants', the robot's, the protocol's, the
+    content's and the controller's settings) by ±50 % and show which Table 4 metric moves
+    with it, above each metric's noise floor over the seeds (a CSV and a tornado chart)."""
+    from sim.sensitivity import SWEEPABLE, sweep, write_csv, write_tornado
 
     chosen = _seeds(seeds) or [0]
-    names = list(only) if only else list(PARTICIPANT_INPUTS)
-    unknown = [name for name in names if name not in PARTICIPANT_INPUTS]
+    names = list(only) if only else list(SWEEPABLE)
+    unknown = [name for name in names if name not in SWEEPABLE]
     if unknown:
         raise typer.BadParameter(
-            f"{', '.join(unknown)}: not a participant input ({', '.join(PARTICIPANT_INPUTS)})",
+            f"{', '.join(unknown)}: not an input of the study ({', '.join(SWEEPABLE)})",
             param_hint="--only",
         )
     with _progress(len(chosen) * (1 + 2 * len(names)), "studies") as told:
@@ -469,7 +478,7 @@ def replay_command(
         Path | None,
         typer.Option(help="A TOML configuration in place of the recorded daemon's."),
     ] = None,
-    as_json: Annotated[bool, typer.Option("--json", help="Print the report as JSON.")] = False,
+    as_json: JsonOption = False,
 ) -> None:
     """Feed a recording's inputs through the controller and report differing decisions.
 
@@ -500,8 +509,8 @@ def replay_command(
 
 @app.command("robot")
 def robot_command(
-    robot_id: Annotated[str, typer.Option("--robot-id", help="Robot id.")] = "mini",
-    connect: Annotated[list[str] | None, typer.Option(help="Zenoh endpoint to connect to.")] = None,
+    robot_id: RobotOption = "mini",
+    connect: ConnectOption = None,
     listen: Annotated[list[str] | None, typer.Option(help="Zenoh endpoint to listen on.")] = None,
     seed: Annotated[int, typer.Option(help="Seed of the simulated robot.")] = 0,
     duration: Annotated[float | None, typer.Option(min=0.0, help="Stop after S seconds.")] = None,
@@ -512,7 +521,7 @@ def robot_command(
     from dms.kernel.keys import ROBOT_ID_RE
     from sim.robot_node import RobotNode
 
-    if not ROBOT_ID_RE.match(robot_id):
+    if not ROBOT_ID_RE.fullmatch(robot_id):
         raise SimError(f"--robot-id: {robot_id!r} does not match [a-z0-9_-]+")
     endpoints = connect if connect or listen else [DEFAULT_ENDPOINT]
     with ZenohClient(robot_id, make_config(listen=listen or (), connect=endpoints or ())) as client:

@@ -116,7 +116,8 @@ class Visit(_Spec):
 
 
 class Preferences(_Spec):
-    """Hidden true liking, 0..1, of each entertainment activity (0.5 when not given)."""
+    """Hidden true liking, 0..1, of each entertainment activity (0.5 when not given);
+    ``declared`` holds those of declared activities, by name."""
 
     multimedia: Probability = 0.5
     news: Probability = 0.5
@@ -126,6 +127,10 @@ class Preferences(_Spec):
     bingo: Probability = 0.5
     jokes: Probability = 0.5
     sayings: Probability = 0.5
+    declared: dict[Annotated[str, Field(pattern=r"^[a-z][a-z0-9_]{0,39}$")], Probability] = Field(
+        default_factory=dict, max_length=64
+    )
+    """Liking of declared activities (a behavior folder's), by name."""
 
 
 class Persona(_Spec):
@@ -169,7 +174,9 @@ class Persona(_Spec):
     def liking(self, activity: str) -> float:
         """The hidden true preference for ``activity`` (0.5 when not stated)."""
         value = (
-            getattr(self.preferences, activity, None)
+            self.preferences.declared.get(activity)
+            if activity in self.preferences.declared
+            else getattr(self.preferences, activity, None)
             if activity in ENTERTAINMENT_ACTIVITIES
             else None
         )

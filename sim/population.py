@@ -24,7 +24,7 @@ import math
 import random
 from typing import Literal
 
-from dms.kernel.activity_names import ENTERTAINMENT_ACTIVITIES
+from dms.kernel.activity_names import SHIPPED_ENTERTAINMENT
 from memory.seed_data import EDUCATION, HOBBIES, OCCUPATIONS, SimulatedPersona, make_persona
 from sim.calibration import DEFAULT, Calibration
 from sim.persona import Patience, Persona, Preferences, Proactivity, Span, SpeechHabits
@@ -102,7 +102,7 @@ def heldout_volunteer(
     weights = [rng.gammavariate(0.7, 1.0) for _ in ARCHETYPES]
     total = sum(weights) or 1.0
     liking = {}
-    for name in ENTERTAINMENT_ACTIVITIES:
+    for name in SHIPPED_ENTERTAINMENT:
         logit = -0.6 + rng.gauss(0.0, OWN_TASTE_SD)
         for weight, effects in zip(weights, ARCHETYPES.values(), strict=True):
             logit += 1.5 * weight / total * effects.get(name, 0.0)
@@ -127,7 +127,7 @@ def paper_participant(
         "name": name.upper(),
         **{"gender" if key == "sex" else key: value for key, value in person.features.items()},
     }
-    prefs = {activity: round(person.liking[activity], 3) for activity in ENTERTAINMENT_ACTIVITIES}
+    prefs = {activity: round(person.liking[activity], 3) for activity in SHIPPED_ENTERTAINMENT}
     ask = min(1.0, calibration.number("ask_by_name_rate") * ASK_BY_NAME_SCALE[level])
     return Persona(
         name=name,

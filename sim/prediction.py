@@ -77,10 +77,12 @@ def run_seeds(
     calibration: Calibration = DEFAULT,
     progress: Callable[[int], None] | None = None,
     jobs: int = 1,
+    repeat: int = 1,
 ) -> list[StudyResult]:
-    """One study per seed, in the order of ``seeds``; ``progress`` is told the number of
-    studies done. ``jobs`` > 1 runs that many studies at once in worker processes: each
-    study depends on its seed alone, so the results are the same."""
+    """One study per seed, in the order of ``seeds``, each participant coming ``repeat``
+    times; ``progress`` is told the number of studies done. ``jobs`` > 1 runs that many
+    studies at once in worker processes: each study depends on its seed alone, so the
+    results are the same."""
     study = functools.partial(
         run_study,
         sessions,
@@ -90,6 +92,7 @@ def run_seeds(
         chooser=chooser,
         population=population,
         calibration=calibration,
+        repeat=repeat,
     )
     results: list[StudyResult] = []
     if jobs <= 1:
@@ -209,6 +212,18 @@ def paired(a: Sequence[StudyResult], b: Sequence[StudyResult]) -> dict[str, Diff
         diff = statistics.fmean(units) if units else math.nan
         out[key] = Difference(mean_a, mean_b, diff, bootstrap_ci(units, seed=0))
     return out
+
+
+def paired_by_visit(
+    a: Sequence[StudyResult], b: Sequence[StudyResult]
+) -> list[dict[str, Difference]]:
+    """:func:`paired` of each visit apart (1..repeat): what each side gives a person at
+    her first visit, her second..."""
+    repeat = a[0].repeat if a else 1
+    return [
+        paired([r.of_visit(visit) for r in a], [r.of_visit(visit) for r in b])
+        for visit in range(1, repeat + 1)
+    ]
 
 
 def bootstrap_ci(diffs: list[float], seed: int) -> tuple[float, float]:

@@ -18,27 +18,17 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
+from dms.kernel.cli_options import (
+    DEFAULT_ENDPOINT,
+    ConnectOption,
+    RobotOption,
+    ZenohConfigOption,
+)
 from sim.errors import SimError
 
 if TYPE_CHECKING:
     from dms.bus import ZenohClient
     from sim.recording import McapRecorder
-
-DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
-
-RobotOption = Annotated[
-    str, typer.Option("--robot", "--robot-id", envvar="DMS_ROBOT_ID", help="Robot id.")
-]
-ConnectOption = Annotated[
-    list[str] | None,
-    typer.Option(
-        help=f"Zenoh endpoint to connect to (default {DEFAULT_ENDPOINT}).", show_default=False
-    ),
-]
-ZenohConfigOption = Annotated[
-    Path | None,
-    typer.Option("--zenoh-config", help="Zenoh JSON5 configuration file.", show_default=False),
-]
 
 
 def _stop_on_signals() -> threading.Event:
@@ -103,7 +93,7 @@ def record_command(
     from dms.operator_cli import absolute_key
     from sim.recording import McapRecorder, record_until
 
-    if not ROBOT_ID_RE.match(robot_id):
+    if not ROBOT_ID_RE.fullmatch(robot_id):
         raise SimError(f"--robot: {robot_id!r} does not match [a-z0-9_-]+")
     exprs = [absolute_key(robot_id, k) for k in only or ["**"]]
     out = out if out is not None else default_name(robot_id, datetime.now())
@@ -185,6 +175,8 @@ def record_info_command(
     from sim.recording import recording_info
 
     info = recording_info(file)
+    for warning in (info.get("config") or {}).get("warnings", []):
+        print(f"dms: {file}: {warning}", file=sys.stderr)
     if as_json:
         typer.echo(json.dumps(info, indent=2))
         return
@@ -279,32 +271,41 @@ def record_play_command(
     """
     from dms.bus import ZenohClient, make_config
     from dms.kernel.keys import ROBOT_ID_RE
-    from sim.recording import RecordedMessage, play, read_recording
+    from sim.recording import RecordedMessage, RecordingReader, play, recording_info
 
-    recording = read_recording(file)
-    if recording.truncated is not None:
-        print(f"dms: {file}: truncated: {recording.truncated}", file=sys.stderr)
-    robot = robot_id or recording.robot_id or "mini"
-    if not ROBOT_ID_RE.match(robot):
+    # Described first, from its summary when it is complete (or read through once when it
+    # is not): a file over a bound is refused before the bus is touched.
+    info = recording_info(file)
+    if not info.get("complete"):
+        print(f"dms: {file}: truncated: {info.get('truncated')}", file=sys.stderr)
+    for warning in (info.get("config") or {}).get("warnings", []):
+        print(f"dms: {file}: {warning}", file=sys.stderr)
+    recorded = next(
+        (t["topic"].split("/")[1] for t in info["topics"] if t["topic"].startswith("robots/")),
+        None,
+    )
+    robot = robot_id or (recorded if recorded != "?" else None) or "mini"
+    if not ROBOT_ID_RE.fullmatch(robot):
         raise SimError(f"--robot: {robot!r} does not match [a-z0-9_-]+")
-    if not recording.messages:
+    if not info["messages"]:
         raise SimError(f"{file}: no message to play")
     endpoints = list(connect or ([] if zenoh_config else [DEFAULT_ENDPOINT]))
     config = make_config(connect=endpoints, config_file=zenoh_config)
     stop = _stop_on_signals()
-    span = (recording.messages[-1].log_time_ns - recording.messages[0].log_time_ns) / 1e9
+    span = ((info["end_ns"] or 0) - (info["start_ns"] or 0)) / 1e9
     with ZenohClient(robot, config) as client:
 
         def publish(message: RecordedMessage) -> None:
             client.publish(message.key, message.payload)
 
         print(
-            f"dms: playing {len(recording.messages)} messages ({span:.1f} s at {rate:g}x) "
+            f"dms: playing {info['messages']} messages ({span:.1f} s at {rate:g}x) "
             f"from {file} onto robots/{robot}/; Ctrl-C stops",
             file=sys.stderr,
             flush=True,
         )
-        published = play(recording.messages, publish, stop, rate=rate, loop=loop)
+        reader = RecordingReader(file, keep_attachments=False)
+        published = play(reader.messages, publish, stop, rate=rate, loop=loop)
     print(f"dms: {published} messages played", file=sys.stderr)
 
 

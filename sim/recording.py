@@ -22,20 +22,19 @@ import json
 import struct
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
 from mcap.exceptions import McapError
-from mcap.reader import make_reader
-from mcap.records import Attachment, Channel, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
+from mcap.records import Attachment, Channel, Footer, Message, Metadata
 from mcap.writer import CompressionType, Writer
 
 from dms.kernel import keys
 from dms.kernel.messages import SCHEMAS, json_schema
 from sim.errors import RecordingError
+from sim.mcap_read import check_chunk_size, mcap_records, read_summary
 
 SCHEMA_BY_KEY: dict[str, str] = {
     keys.PERCEPTION_USER: "perception_user",
@@ -237,6 +236,16 @@ class Recording:
         return RecordedConfig.parse(self.metadata.get(CONFIG_METADATA), self.attachments)
 
 
+CONFIG_FIELDS: dict[str, Any] = {
+    "robot_id": "",
+    "seed": None,
+    "versions": {},
+    "settings": {},
+    "files": [],
+}
+"""The fields of the stored configuration, and what stands in for one that is missing."""
+
+
 @dataclass(frozen=True)
 class RecordedConfig:
     """What :meth:`McapRecorder.add_config` stored: enough to replay without flags."""
@@ -249,6 +258,20 @@ class RecordedConfig:
     """Attachment name (``rules/0/decisions.dmsl``, ``behaviors/quiz.yaml``) to content."""
     sources: dict[str, str]
     """Attachment name to the path it had on the recorded machine."""
+    stored: tuple[str, ...] = ()
+    """The names of the files the recorder stored, in its order."""
+    missing: tuple[str, ...] = ()
+    """The fields that were missing or could not be read (a file written by another
+    version, or edited): the defaults stood in for them (:attr:`warnings` says so)."""
+
+    @property
+    def warnings(self) -> list[str]:
+        """One line per missing field, naming it."""
+        return [
+            f"the stored configuration lacks {name!r} (or it cannot be read): "
+            f"{'the defaults stand in for it' if name == 'settings' else 'left out'}"
+            for name in self.missing
+        ]
 
     @classmethod
     def parse(
@@ -256,88 +279,132 @@ class RecordedConfig:
     ) -> RecordedConfig | None:
         if metadata is None:
             return None
-        try:
-            seed = json.loads(metadata.get("seed", "null"))
-            versions = json.loads(metadata.get("versions", "{}"))
-            settings = json.loads(metadata["settings"])
-            index = json.loads(metadata.get("files", "[]"))
-        except (KeyError, ValueError) as error:
-            raise RecordingError(f"the stored configuration cannot be read: {error}") from None
-        names = [str(item.get("name")) for item in index if isinstance(item, dict)]
+        values: dict[str, Any] = {}
+        missing: list[str] = []
+        for name, default in CONFIG_FIELDS.items():
+            readable, value = _config_field(name, metadata.get(name))
+            if not readable:
+                missing.append(name)
+                value = default
+            values[name] = value
+        index = [item for item in values["files"] if isinstance(item, dict)]
+        names = [str(item.get("name")) for item in index]
         return cls(
-            robot_id=metadata.get("robot_id", ""),
-            seed=seed if isinstance(seed, int) else None,
-            versions={str(k): str(v) for k, v in versions.items()},
-            settings=settings,
+            robot_id=values["robot_id"],
+            seed=values["seed"],
+            versions={str(k): str(v) for k, v in values["versions"].items()},
+            settings=values["settings"],
             files={name: attachments[name] for name in names if name in attachments},
             sources={
-                str(item.get("name")): str(item.get("path"))
-                for item in index
-                if isinstance(item, dict) and item.get("path")
+                str(item.get("name")): str(item.get("path")) for item in index if item.get("path")
             },
+            stored=tuple(names),
+            missing=tuple(missing),
         )
 
 
-def read_recording(path: Path) -> Recording:
-    """Read every complete message of ``path``; a truncated file yields what it holds."""
+def _config_field(name: str, text: str | None) -> tuple[bool, Any]:
+    """(whether it could be read, its value) of one field of the stored configuration."""
+    if text is None:
+        return False, None
+    if name == "robot_id":
+        return True, text
     try:
-        stream = path.open("rb")
-    except OSError as error:
-        raise RecordingError(f"{path}: cannot read: {error.strerror or error}") from None
-    channels: dict[int, str] = {}
-    robot_id: str | None = None
-    messages: list[RecordedMessage] = []
-    metadata: dict[str, dict[str, str]] = {}
-    attachments: dict[str, bytes] = {}
-    bad = 0
-    truncated: str | None = None
-    complete = False
-    with stream:
-        reader = StreamReader(stream, record_size_limit=256 * 1024 * 1024)
+        value = json.loads(text)
+    except ValueError:
+        return False, None
+    if name == "seed":  # null: the recorded daemon ran without one
+        return value is None or (isinstance(value, int) and not isinstance(value, bool)), value
+    return isinstance(value, type(CONFIG_FIELDS[name])), value
+
+
+class RecordingReader:
+    """Reads a recording's messages one at a time, in file order, with bounded memory
+    (:mod:`sim.mcap_read`): ``dms record play`` publishes them as they come. What it
+    met on the way (the robot, the metadata, where a cut file ended) is kept on it."""
+
+    def __init__(self, path: Path, keep_attachments: bool = True) -> None:
+        self.path = path
+        self.keep_attachments = keep_attachments
+        self.robot_id: str | None = None
+        self.truncated: str | None = None
+        """None for a complete file, once read; else where and why it ended."""
+        self.bad_messages = 0
+        self.metadata: dict[str, dict[str, str]] = {}
+        self.attachments: dict[str, bytes] = {}
+        self.attachment_sizes: dict[str, int] = {}
+
+    def messages(self) -> Iterator[RecordedMessage]:
+        """Each complete message of the file; a truncated file yields what it holds.
+        RecordingError: not an MCAP file, or a record over a bound."""
+        path = self.path
         try:
-            for record in reader.records:
-                if isinstance(record, Schema):
-                    continue
-                if isinstance(record, Metadata):
-                    metadata.setdefault(record.name, dict(record.metadata))
-                    continue
-                if isinstance(record, Attachment):
-                    attachments.setdefault(record.name, bytes(record.data))
-                    continue
-                if isinstance(record, Channel):
-                    channels[record.id] = record.topic
-                    if robot_id is None and record.topic.startswith("robots/"):
-                        robot_id = record.topic.split("/")[1]
-                elif isinstance(record, Message):
-                    topic = channels.get(record.channel_id)
-                    try:
-                        payload = json.loads(record.data)
-                    except (ValueError, UnicodeDecodeError):
-                        bad += 1
-                        continue
-                    if topic is None:
-                        bad += 1
-                        continue
-                    key = topic.split("/", 2)[2] if topic.count("/") >= 2 else topic
-                    messages.append(RecordedMessage(key, record.log_time, payload))
-                elif type(record).__name__ == "Footer":
-                    complete = True
-        except (McapError, struct.error, EOFError, ValueError, MemoryError) as error:
-            last = messages[-1].log_time_ns if messages else None
-            when = f" after the message at {_iso_ns(last)}" if last is not None else ""
-            reason = str(error) or "end of file"
-            truncated = (
-                f"the file ({path.stat().st_size} bytes) ends inside a record{when}: "
-                f"read {len(messages)} messages ({reason})"
-            )
-        if truncated is None and not complete:
-            truncated = f"the file ends without its footer: read {len(messages)} messages"
-    if not messages and truncated is not None and not channels:
-        if metadata:  # an MCAP file that was cut before its first message
-            raise RecordingError(f"{path}: cut before its first message ({truncated})")
-        raise RecordingError(f"{path}: not an MCAP recording ({truncated})")
-    messages.sort(key=lambda message: message.log_time_ns)
-    return Recording(robot_id, messages, truncated, bad, metadata, attachments)
+            stream = path.open("rb")
+        except OSError as error:
+            raise RecordingError(f"{path}: cannot read: {error.strerror or error}") from None
+        channels: dict[int, str] = {}
+        count, last = 0, None
+        self.truncated, complete = None, False
+        with stream:
+            try:
+                for record in mcap_records(stream, str(path)):
+                    if isinstance(record, Metadata):
+                        self.metadata.setdefault(record.name, dict(record.metadata))
+                    elif isinstance(record, Attachment):
+                        self.attachment_sizes.setdefault(record.name, len(record.data))
+                        if self.keep_attachments:
+                            self.attachments.setdefault(record.name, bytes(record.data))
+                    elif isinstance(record, Channel):
+                        channels[record.id] = record.topic
+                        if self.robot_id is None and record.topic.startswith("robots/"):
+                            self.robot_id = record.topic.split("/")[1]
+                    elif isinstance(record, Message):
+                        message = self._message(record, channels.get(record.channel_id))
+                        if message is not None:
+                            count, last = count + 1, message.log_time_ns
+                            yield message
+                    elif isinstance(record, Footer):
+                        complete = True
+            except (McapError, struct.error, EOFError, ValueError, MemoryError) as error:
+                when = f" after the message at {_iso_ns(last)}" if last is not None else ""
+                reason = str(error) or "end of file"
+                self.truncated = (
+                    f"the file ({path.stat().st_size} bytes) ends inside a record{when}: "
+                    f"read {count} messages ({reason})"
+                )
+            if self.truncated is None and not complete:
+                self.truncated = f"the file ends without its footer: read {count} messages"
+        if not count and self.truncated is not None and not channels:
+            if self.metadata:  # an MCAP file that was cut before its first message
+                raise RecordingError(f"{path}: cut before its first message ({self.truncated})")
+            raise RecordingError(f"{path}: not an MCAP recording ({self.truncated})")
+
+    def _message(self, record: Message, topic: str | None) -> RecordedMessage | None:
+        try:
+            payload = json.loads(record.data)
+        except (ValueError, UnicodeDecodeError):
+            payload = None
+            topic = None
+        if topic is None:
+            self.bad_messages += 1
+            return None
+        key = topic.split("/", 2)[2] if topic.count("/") >= 2 else topic
+        return RecordedMessage(key, record.log_time, payload)
+
+
+def read_recording(path: Path) -> Recording:
+    """Read every complete message of ``path``; a truncated file yields what it holds.
+    ``dms sim replay`` needs them all at once; ``dms record play`` streams them."""
+    reader = RecordingReader(path)
+    messages = sorted(reader.messages(), key=lambda message: message.log_time_ns)
+    return Recording(
+        reader.robot_id,
+        messages,
+        reader.truncated,
+        reader.bad_messages,
+        reader.metadata,
+        reader.attachments,
+    )
 
 
 def _iso_ns(ns: int) -> str:
@@ -370,25 +437,30 @@ def record_until(
 
 
 def play(
-    messages: Sequence[RecordedMessage],
+    messages: Callable[[], Iterable[RecordedMessage]],
     publish: Callable[[RecordedMessage], None],
     stop: threading.Event,
     rate: float = 1.0,
     loop: bool = False,
     clock: Callable[[], float] = time.monotonic,
 ) -> int:
-    """Publish ``messages`` at their recorded pace (``rate`` times faster), again from the
-    start when ``loop``, until the last one or ``stop``; returns how many were published.
+    """Publish the messages ``messages()`` yields at their recorded pace (``rate`` times
+    faster), again from the start (a new ``messages()``) when ``loop``, until the last
+    one or ``stop``; returns how many were published. They are read as they are played
+    (:class:`RecordingReader`), so a long recording takes no more memory than a short one.
 
     Each message is due at the start plus its recorded offset, a deadline on ``clock``
-    (not a sleep after each one: a slow publish does not delay the rest)."""
+    (not a sleep after each one: a slow publish does not delay the rest); one recorded
+    before the previous is due at once."""
     if rate <= 0:
         raise ValueError("rate must be > 0")
     published = 0
-    while messages and not stop.is_set():
-        first_ns = messages[0].log_time_ns
+    while not stop.is_set():
+        first_ns: int | None = None
         start = clock()
-        for message in messages:
+        for message in messages():
+            if first_ns is None:
+                first_ns, start = message.log_time_ns, clock()
             due = start + (message.log_time_ns - first_ns) / 1e9 / rate
             wait = due - clock()
             if wait > 0 and stop.wait(wait):
@@ -397,7 +469,7 @@ def play(
                 return published
             publish(message)
             published += 1
-        if not loop:
+        if not loop or first_ns is None:
             break
     return published
 
@@ -412,14 +484,11 @@ def recording_info(path: Path) -> dict[str, Any]:
     except OSError as error:
         raise RecordingError(f"{path}: cannot read: {error.strerror or error}") from None
     info: dict[str, Any] = {"file": str(path), "bytes": size}
-    summary = None
     with path.open("rb") as stream:
         try:
-            reader = make_reader(stream)
-            summary = reader.get_summary()
-            metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
-        except (McapError, struct.error, EOFError, ValueError):
-            summary = None
+            summary, metadata = read_summary(stream, str(path))
+        except (McapError, struct.error, EOFError, ValueError, OSError):
+            summary = None  # a file cut short: read as far as it goes
     if summary is None or summary.statistics is None:
         return _info_by_reading(path, info)
     stats = summary.statistics
@@ -432,6 +501,8 @@ def recording_info(path: Path) -> dict[str, Any]:
         summary.channels[cid].topic: count for cid, count in stats.channel_message_counts.items()
     }
     chunks = summary.chunk_indexes
+    for chunk in chunks:  # what the summary says; reading checks what the chunks hold
+        check_chunk_size(chunk.uncompressed_size, str(path))
     info.update(
         {
             "complete": True,
@@ -456,41 +527,43 @@ def recording_info(path: Path) -> dict[str, Any]:
 
 
 def _info_by_reading(path: Path, info: dict[str, Any]) -> dict[str, Any]:
-    recording = read_recording(path)
+    reader = RecordingReader(path, keep_attachments=False)
     topics: dict[str, int] = {}
-    for message in recording.messages:
+    count, start_ns, end_ns = 0, None, None
+    for message in reader.messages():
         topics[message.key] = topics.get(message.key, 0) + 1
-    robot = recording.robot_id or "?"
-    times = [m.log_time_ns for m in recording.messages]
+        count += 1
+        start_ns = min(start_ns or message.log_time_ns, message.log_time_ns)
+        end_ns = max(end_ns or message.log_time_ns, message.log_time_ns)
+    robot = reader.robot_id or "?"
     info.update(
         {
             "complete": False,
-            "truncated": recording.truncated,
-            "messages": len(recording.messages),
-            "start_ns": min(times) if times else None,
-            "end_ns": max(times) if times else None,
+            "truncated": reader.truncated,
+            "messages": count,
+            "start_ns": start_ns,
+            "end_ns": end_ns,
             "topics": [
                 {"topic": f"robots/{robot}/{key}", "count": count, "schema": None}
                 for key, count in sorted(topics.items())
             ],
             "attachments": [
-                {"name": name, "bytes": len(data)} for name, data in recording.attachments.items()
+                {"name": name, "bytes": size} for name, size in reader.attachment_sizes.items()
             ],
         }
     )
-    info["config"] = _config_info(recording.metadata.get(CONFIG_METADATA))
+    info["config"] = _config_info(reader.metadata.get(CONFIG_METADATA))
     return info
 
 
 def _config_info(metadata: dict[str, str] | None) -> dict[str, Any] | None:
-    if metadata is None:
-        return None
     config = RecordedConfig.parse(metadata, {})
-    assert config is not None
-    files = json.loads(metadata.get("files", "[]"))
+    if config is None:
+        return None
     return {
         "robot_id": config.robot_id,
         "seed": config.seed,
         "versions": config.versions,
-        "files": [item.get("name") for item in files if isinstance(item, dict)],
+        "files": list(config.stored),
+        "warnings": config.warnings,
     }

@@ -147,6 +147,8 @@ def replay(path: Path, seed: int | None = None, settings: Settings | None = None
     recording: Recording = read_recording(path)
     notes: list[str] = []
     config = recording.config
+    if config is not None:
+        notes.extend(config.warnings)
     with tempfile.TemporaryDirectory(prefix="dms-replay-") as folder:
         if settings is None and config is not None:
             settings = recorded_settings(config, Path(folder))

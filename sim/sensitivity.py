@@ -1,36 +1,56 @@
-"""``dms sim sensitivity``: which Table 4 metric moves with which participant input.
+"""``dms sim sensitivity``: which Table 4 metric moves with which input of the study.
 
-Each participant input of :mod:`sim.calibration` (:data:`~sim.calibration.PARTICIPANT_INPUTS`)
-is moved by ±``change`` (50 % by default), one at a time, and the study is run on the
-same seeds as the unmoved baseline; for each metric the change of its mean over the
-seeds is recorded. ``sensitivity.csv`` has one row per input, direction and metric;
-``sensitivity.png`` is a tornado chart per metric (the inputs sorted by their effect).
+Each input is moved by ±``change`` (50 % by default), one at a time, and the study is
+run on the same seeds as the unmoved baseline; for each metric the change of its mean
+over the seeds is recorded. The inputs are the participants' habits
+(:data:`~sim.calibration.PARTICIPANT_INPUTS`), the robot's, the protocol's and the
+content's inputs of :mod:`sim.calibration` (:data:`~sim.calibration.SETTING_INPUTS`), and
+the controller's settings a designer chooses (:data:`CONTROLLER_INPUTS`). Each metric's
+noise floor is the half-width of the 95 % interval of its baseline mean over the seeds:
+an effect within it is not told apart from the seeds' own spread, and the input that
+moves a metric most is named only when its swing is above it. ``sensitivity.csv`` has
+one row per input, direction and metric; ``sensitivity.png`` is a tornado chart per
+metric (the inputs sorted by their effect).
 """
 
 from __future__ import annotations
 
 import csv
+import math
 import statistics
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from sim.calibration import DEFAULT
+from dms.config import Settings
+from sim.calibration import DEFAULT, INPUTS, PARTICIPANT_INPUTS, SETTING_INPUTS
 from sim.prediction import per_study, run_seeds
 from sim.study import study_settings
 from sim.table4 import LABELS, METRICS, OUTCOMES
 
 SWEPT_METRICS: tuple[str, ...] = (*METRICS, *OUTCOMES)
+CONTROLLER_INPUTS: tuple[str, ...] = (
+    "controller.menu_timeout_s",
+    "controller.feedback_probability",
+    "controller.session_questions",
+)
+"""Settings of ``[controller]`` a designer chooses, moved as the other inputs."""
+SWEEPABLE: tuple[str, ...] = (*PARTICIPANT_INPUTS, *SETTING_INPUTS, *CONTROLLER_INPUTS)
+"""Every input ``dms sim sensitivity`` can move (``--only`` names one of these)."""
+NO_DRIVER = "(none above the noise)"
 
 
 @dataclass
 class Sensitivity:
-    """The baseline means and, per input and direction, the moved means."""
+    """The baseline means, their noise floors and, per input and direction, the moved means."""
 
     seeds: list[int]
     change: float
     baseline: dict[str, float]
+    noise: dict[str, float] = field(default_factory=dict)
+    """Per metric, the half-width of the 95 % interval of the baseline's mean over the
+    seeds (0 with one seed: then no effect can be told from noise, say so)."""
     moved: dict[tuple[str, str], dict[str, float]] = field(default_factory=dict)
     """(input, "low" or "high") -> metric -> mean over the seeds."""
 
@@ -41,18 +61,21 @@ class Sensitivity:
     def inputs(self) -> list[str]:
         return list(dict.fromkeys(name for name, _ in self.moved))
 
+    def swing(self, name: str, metric: str) -> float:
+        return abs(self.effect(name, "high", metric) - self.effect(name, "low", metric))
+
     def driver(self, metric: str) -> str:
-        """The input that moves ``metric`` most (largest low-to-high swing)."""
-        return max(
-            self.inputs(),
-            key=lambda n: abs(self.effect(n, "high", metric) - self.effect(n, "low", metric)),
-        )
+        """The input that moves ``metric`` most (largest low-to-high swing), when that
+        swing is above the metric's noise floor; :data:`NO_DRIVER` otherwise."""
+        best = max(self.inputs(), key=lambda n: self.swing(n, metric))
+        return best if self.swing(best, metric) > self.noise.get(metric, 0.0) else NO_DRIVER
 
     def to_json(self) -> dict[str, Any]:
         return {
             "seeds": self.seeds,
             "change": self.change,
             "baseline": {k: round(v, 4) for k, v in self.baseline.items()},
+            "noise_floor": {k: round(v, 4) for k, v in self.noise.items()},
             "effects": {
                 name: {
                     metric: [
@@ -69,21 +92,58 @@ class Sensitivity:
     def text(self) -> str:
         lines = [
             f"Each input moved by ±{self.change:.0%} (seeds {self.seeds[0]}-{self.seeds[-1]}); "
-            "per metric, the input that moves it most:",
+            "per metric, its noise floor and the input that moves it most:",
         ]
         for metric in SWEPT_METRICS:
             name = self.driver(metric)
+            floor = self.noise.get(metric, 0.0)
+            head = f"  {LABELS[metric]:<38} {self.baseline[metric]:9.2f} ±{floor:<7.2f}"
+            if name == NO_DRIVER:
+                lines.append(f"{head} {name}")
+                continue
             low, high = self.effect(name, "low", metric), self.effect(name, "high", metric)
             lines.append(
-                f"  {LABELS[metric]:<38} {self.baseline[metric]:9.2f}  {name:<17} "
-                f"-{self.change:.0%}: {low:+.2f}  +{self.change:.0%}: {high:+.2f}"
+                f"{head} {name:<32} -{self.change:.0%}: {low:+.2f}  +{self.change:.0%}: {high:+.2f}"
             )
+        if len(self.seeds) < 2:
+            lines.append("one seed: no noise floor, every effect may be the seeds' own spread")
         return "\n".join(lines)
 
 
-def _means(seeds: Sequence[int], sessions: int, minutes: float, **kwargs: Any) -> dict[str, float]:
-    values = per_study(run_seeds(seeds, sessions, minutes, settings=study_settings(), **kwargs))
-    return {key: statistics.fmean(values[key]) for key in SWEPT_METRICS}
+def _means(
+    seeds: Sequence[int], sessions: int, minutes: float, **kwargs: Any
+) -> tuple[dict[str, float], dict[str, float]]:
+    """Per metric, the mean over the seeds and the half-width of its 95 % interval."""
+    from scipy import stats
+
+    values = per_study(run_seeds(seeds, sessions, minutes, **kwargs))
+    means = {key: statistics.fmean(values[key]) for key in SWEPT_METRICS}
+    noise = {}
+    for key in SWEPT_METRICS:
+        series = values[key]
+        noise[key] = (
+            float(stats.t.ppf(0.975, len(series) - 1))
+            * statistics.stdev(series)
+            / math.sqrt(len(series))
+            if len(series) > 1
+            else 0.0
+        )
+    return means, noise
+
+
+def moved_settings(name: str, factor: float) -> Settings:
+    """The study's settings with the controller setting ``controller.X`` times ``factor``
+    (a whole number stays whole, a probability at most 1)."""
+    settings = study_settings()
+    field_name = name.removeprefix("controller.")
+    value = getattr(settings.controller, field_name)
+    moved: float = value * factor
+    if isinstance(value, int):
+        moved = round(moved)
+    elif field_name.endswith("probability"):
+        moved = min(1.0, moved)
+    controller = settings.controller.model_copy(update={field_name: moved})
+    return settings.model_copy(update={"controller": controller})
 
 
 def sweep(
@@ -94,7 +154,8 @@ def sweep(
     change: float = 0.5,
     progress: Callable[[int], None] | None = None,
 ) -> Sensitivity:
-    """The baseline and each input in ``names`` moved down and up by ``change``."""
+    """The baseline and each input in ``names`` (of :data:`SWEEPABLE`) moved down and up
+    by ``change``."""
     done = 0
 
     def step() -> None:
@@ -103,14 +164,22 @@ def sweep(
         if progress is not None:
             progress(done)
 
-    result = Sensitivity(list(seeds), change, _means(seeds, sessions, minutes))
+    baseline, noise = _means(seeds, sessions, minutes, settings=study_settings())
+    result = Sensitivity(list(seeds), change, baseline, noise)
     step()
     for name in names:
         for direction, factor in (("low", 1.0 - change), ("high", 1.0 + change)):
-            calibration = DEFAULT.scaled(name, factor)
-            result.moved[(name, direction)] = _means(
-                seeds, sessions, minutes, calibration=calibration
-            )
+            if name in INPUTS:
+                moved, _ = _means(
+                    seeds,
+                    sessions,
+                    minutes,
+                    settings=study_settings(),
+                    calibration=DEFAULT.scaled(name, factor),
+                )
+            else:
+                moved, _ = _means(seeds, sessions, minutes, settings=moved_settings(name, factor))
+            result.moved[(name, direction)] = moved
             step()
     return result
 
@@ -163,7 +232,7 @@ def write_tornado(path: Path, result: Sensitivity) -> Path:
     for ax in list(axes.flat)[len(metrics) :]:
         ax.axis("off")
     axes.flat[0].legend(fontsize=7)
-    fig.suptitle("Change of each metric's mean with each participant input moved", fontsize=11)
+    fig.suptitle("Change of each metric's mean with each input moved", fontsize=11)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -45,6 +45,7 @@ per robot choice and the time spent in activities the participant likes.
 
 from __future__ import annotations
 
+import dataclasses
 import random
 import time
 from collections.abc import Callable, Sequence
@@ -140,6 +141,9 @@ class SessionObserver:
         self._loading: dict[str, tuple[float, CommandHandle | None]] = {}
         """Activities started (at t) whose first command has not started yet."""
         self._last_end: float | None = None
+        self._stop_asked: float | None = None
+        """When the participant asked to stop the activity under way (a shoulder touch
+        or words), until the next start."""
 
     @property
     def between_activities(self) -> bool:
@@ -166,7 +170,14 @@ class SessionObserver:
             return
         if not counted or name is None:
             return
+        if d.action == "pause" and d.reason == "confirm_cancel":
+            self._stop_asked = t  # the shoulder: "continue or stop?"
+        elif d.action == "resume" and d.reason == "confirm_cancel":
+            self._stop_asked = None  # they went on
         if d.action == "start":
+            if self._stop_asked is not None:
+                m.stop_times.append(t - self._stop_asked)
+                self._stop_asked = None
             m.activities += 1
             self._started[name] = t
             # Decisions are reported after their tick: the activity may have sent its
@@ -191,6 +202,8 @@ class SessionObserver:
                 if self.liking is not None and self.liking(name) >= LIKES:
                     m.liked_s += t - began
             if d.action == "cancel" and d.reason in USER_CANCEL_REASONS:
+                if self._stop_asked is None:
+                    self._stop_asked = t  # asked in words: stopped at once
                 m.cancels += 1
                 if d.chosen_by == "robot":
                     m.robot_choice_cancels += 1
@@ -312,6 +325,11 @@ class StudyResult:
             key: [session_value(s, key) for s in self.sessions] for key in (*METRICS, *OUTCOMES)
         }
 
+    def of_visit(self, visit: int) -> StudyResult:
+        """The sessions of one visit (1..repeat) alone, as a study of one visit."""
+        sessions = [s for s in self.sessions if s.visit == visit]
+        return dataclasses.replace(self, sessions=sessions, repeat=1, decisions=[])
+
     def adaptation(self) -> dict[str, list[float]]:
         """Per visit (1..repeat): :func:`adaptation` of these sessions."""
         return adaptation(self.sessions, self.repeat)
@@ -361,7 +379,7 @@ class StudyResult:
                 value = f"{mean:.2f} ({sd:.2f})"
                 paper = "{:.2f} ({:.2f})".format(*PAPER[key])
             lines.append(f"{kind_label(kind):<15} {label:<38} {value:<16} {paper}")
-        for key in ("robot_choice_liking", "robot_choice_cancel_rate", "liked_time_s"):
+        for key in OUTCOMES:
             mean, sd = table[key]
             lines.append(f"{'Outcome':<15} {LABELS[key]:<38} {mean:.2f} ({sd:.2f})")
         if self.repeat > 1:
@@ -414,7 +432,7 @@ def run_study(
     progress: Callable[[int], None] | None = None,
     *,
     repeat: int = 1,
-    survey_s: float = SURVEY_S,
+    survey_s: float | None = None,
     launch_delay_s: tuple[float, float] | None = None,
     population: Population = "paper",
     record_decisions: bool = False,
@@ -439,6 +457,8 @@ def run_study(
     truth = {p.id: p.preferences.model_dump() for p in people}
     users = {p.id: SimulatedUser(p, random.Random(rng.random())) for p in people}
     launch = launch_delay_s if launch_delay_s is not None else calibration.span("launch_delay_s")
+    survey_s = calibration.number("survey_s") if survey_s is None else survey_s
+    gap_s = calibration.number("gap_s")
     results: list[SessionMetrics] = []
     decision_rows: list[DecisionRow] = []
     start = datetime(2026, 11, 23, 9, 0, tzinfo=UTC)
@@ -490,7 +510,7 @@ def run_study(
                 _rank(sim, person, metrics)
                 observer = SessionObserver()  # the survey and the gap are not measured
                 current["session"] = 0
-                sim.run_until(max(began + minutes * 60.0, sim.t + survey) + GAP_S)
+                sim.run_until(max(began + minutes * 60.0, sim.t + survey) + gap_s)
                 results.append(metrics)
                 if progress is not None:
                     progress(number)

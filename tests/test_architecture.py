@@ -110,6 +110,91 @@ def test_the_kernel_imports_only_the_kernel() -> None:
     assert outside == set()
 
 
+def _foreign_writes(source: str) -> list[tuple[int, str]]:
+    """``x.attr = ...`` (also ``+=``, annotated, in a tuple) where ``x`` is not ``self``:
+    a write to another object's field, with its line."""
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Assign):
+            targets = list(node.targets)
+        elif isinstance(node, ast.AugAssign | ast.AnnAssign):
+            targets = [node.target]
+        else:
+            continue
+        while targets:
+            target = targets.pop()
+            if isinstance(target, ast.Tuple | ast.List | ast.Starred):
+                targets.extend(
+                    target.elts if not isinstance(target, ast.Starred) else [target.value]
+                )
+            elif isinstance(target, ast.Attribute) and not (
+                isinstance(target.value, ast.Name) and target.value.id == "self"
+            ):
+                found.append((target.lineno, ast.unparse(target)))
+    return sorted(found)
+
+
+def test_the_foreign_write_check_sees_what_it_means() -> None:
+    source = (
+        "self.a = 1\n"
+        "self.runner.current = None\n"
+        "session.mode, self.b = m, 2\n"
+        "self.counters.ticks += 1\n"
+        "x: int = 1\n"
+    )
+    assert _foreign_writes(source) == [
+        (2, "self.runner.current"),
+        (3, "session.mode"),
+        (4, "self.counters.ticks"),
+    ]
+
+
+def test_each_piece_of_the_controllers_state_is_written_by_its_owner() -> None:
+    """An object of the controller writes only its own fields: the runner clears the
+    activity it ends, the dialogs open and drop their dialogs, a session keeps its own
+    record; the others ask them (a method) or receive (a return value, a queue)."""
+    writes = [
+        f"{path.relative_to(ROOT)}:{line}: {target}"
+        for path in sorted((ROOT / "dms" / "controller").glob("*.py"))
+        for line, target in _foreign_writes(path.read_text(encoding="utf-8"))
+    ]
+    assert writes == [], "ask the owner to change its state (a method), do not assign it"
+
+
+SHARED_OPTIONS = ("--connect", "--zenoh-config", "--robot", "--robot-id", "--db")
+"""Options every command spells alike, from dms/kernel/cli_options.py."""
+OWN_VARIANTS = {
+    "dms/cli.py": "dms run: each flag's help names its setting and variable",
+    "dms/viewer/cli.py": "--robot: several robots, every robot by default",
+    "dms/foxglove_cli.py": "--robot: '*' for every robot",
+    "dms/studio/cli.py": "--connect: no daemon by default, the simulated Mini only",
+    "sim/record_cli.py": "play --robot: the recorded robot by default",
+}
+"""Files that define one of them differently, on purpose, and why."""
+
+
+def test_shared_options_are_defined_once() -> None:
+    spelt = set()
+    for pkg in PACKAGES:
+        for path in sorted((ROOT / pkg).rglob("*.py")):
+            name = str(path.relative_to(ROOT))
+            if name == "dms/kernel/cli_options.py":
+                continue
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                if (
+                    isinstance(node, ast.Call)
+                    and isinstance(node.func, ast.Attribute)
+                    and node.func.attr == "Option"
+                    and any(
+                        isinstance(arg, ast.Constant) and arg.value in SHARED_OPTIONS
+                        for arg in node.args
+                    )
+                ):
+                    spelt.add(name)
+    assert spelt <= set(OWN_VARIANTS), "use the option of dms/kernel/cli_options.py"
+    assert set(OWN_VARIANTS) <= spelt, "a variant is gone: drop it from OWN_VARIANTS"
+
+
 MAX_LINES = 600
 REASON = "Over 600 lines: "
 REASON_WITHIN = 15  # the reason line sits at the top: a comment or the docstring's start

@@ -52,7 +52,7 @@ class Aiming(Block[AP]):
     def begin(self, now: datetime) -> None:
         self.handles = []
         self.aim = None
-        located = locate(self.rt.ctx, self.args.frame, now)
+        located = locate(self.rt.ctx, self.args.frame, now, self.rt.task_frames)
         if located is None or (not located.live and not self.args.last_known):
             return
         targets = self.targets(located)

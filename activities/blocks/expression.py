@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import (
     Field,
     field_validator,
+    model_validator,
 )
 
 from activities.blocks.base import Block
@@ -74,7 +75,7 @@ class Gesture(Block[GestureParams]):
         frame = self.args.toward
         if frame is None:
             return
-        located = locate(self.rt.ctx, frame, now)
+        located = locate(self.rt.ctx, frame, now, self.rt.task_frames)
         if located is None or (self.hip is not None and not located.live):
             return
         hip = turn_toward(located)["hip"]
@@ -112,6 +113,19 @@ class PoseParams(BlockParams):
         description="The poses to move through, in order: joint -> radians. The studio's "
         "Record button takes the robot's current joints as the next keyframe.",
     )
+    seconds: list[Annotated[float, Field(gt=0, le=60)] | None] = Field(
+        [],
+        description="How long each move takes, one per keyframe (null, or missing: as fast "
+        "as the joints go).",
+    )
+
+    @model_validator(mode="after")
+    def _one_time_per_keyframe(self) -> PoseParams:
+        if len(self.seconds) > len(self.keyframes):
+            raise ValueError(
+                f"seconds: {len(self.seconds)} times for {len(self.keyframes)} keyframes"
+            )
+        return self
 
     @field_validator("keyframes")
     @classmethod
@@ -138,9 +152,13 @@ class Pose(Block[PoseParams]):
         self._send(now)
 
     def _send(self, now: datetime) -> None:
-        keyframe = self.args.keyframes[self.next_keyframe]
+        index = self.next_keyframe
         self.next_keyframe += 1
-        self.command("motion", "pose", {"joints": dict(keyframe)}, now)
+        args: dict[str, Any] = {"joints": dict(self.args.keyframes[index])}
+        seconds = self.args.seconds[index] if index < len(self.args.seconds) else None
+        if seconds is not None:
+            args["duration_s"] = seconds
+        self.command("motion", "pose", args, now)
 
     def update(self, now: datetime) -> Status:
         error = self.command_error()

@@ -20,7 +20,7 @@ from activities.blocks.params import BlockParams, Text
 from activities.containers import words
 from activities.engine import Event, Runtime, Status, Wake
 from activities.synonyms import match_activity
-from dms.kernel.activity_names import USER_SELECTABLE
+from dms.kernel.activity_names import USER_SELECTABLE, current
 from dms.kernel.expression import Priority
 from dms.kernel.messages import ScreenChoice, Speech, Touch
 from dms.kernel.words import digits
@@ -149,7 +149,12 @@ class Ask(Block[AskParams]):
             text = f"{text} Please answer on the screen."
         self.said = self.command("speech", "say", speech_args(self.rt, text, None), now)
         if self.choices():
-            self.command("screen", "show", {"text": self.prompt(), "choices": self.choices()}, now)
+            shown = {"text": self.prompt(), "choices": self.choices(), **self.screen_extra()}
+            self.command("screen", "show", shown, now)
+
+    def screen_extra(self) -> dict[str, Any]:
+        """More for the screen beside the question and its choices (the menu's)."""
+        return {}
 
     def on_pause(self, now: datetime) -> None:
         self.attempt -= 1  # the interrupted question is asked again, not counted twice
@@ -241,14 +246,32 @@ class Menu(Ask):
     def bind_params(self) -> None:
         """The menu is an ask question made of the menu's parameters."""
         menu = cast(MenuParams, self.bound())
+        # Not written: the activities in force now, declared ones included.
+        options = menu.options if "options" in menu.model_fields_set else USER_SELECTABLE
         self.args = AskParams.model_construct(
             question=menu.title,
-            choices=list(menu.options),
+            choices=list(options),
             timeout_s=menu.timeout_s,
             attempts=menu.attempts,
             key=menu.key,
             retry_text=menu.retry_text,
         )
+
+    def screen_extra(self) -> dict[str, Any]:
+        """The menu names and pictures of the declared activities offered (none of the
+        shipped, whose names are shown as they are)."""
+        labels, pictures = {}, {}
+        for name in self.choices():
+            entry = current().entry(name)
+            if entry is None or entry.shipped:
+                continue
+            labels[name] = entry.label or name
+            if entry.picture:
+                pictures[name] = entry.picture
+        extra: dict[str, Any] = {"labels": labels} if labels else {}
+        if pictures:
+            extra["pictures"] = pictures
+        return extra
 
     def interpret(self, event: Event) -> str | None:
         options = self.choices()

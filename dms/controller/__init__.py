@@ -8,7 +8,8 @@ Files, in the order a newcomer reads them:
 - ``tick.py``: :class:`Controller` and its ``tick``: the steps of the loop in order,
   each under the fault barrier.
 - ``dialogs.py`` (questions, feedback, "continue or stop?"), ``events.py`` (requests,
-  touches, speech, screen choices), ``sessions.py`` (users, their sessions and
+  touches, speech, screen choices), ``requests.py`` (the queue from the events to the
+  choice), ``sessions.py`` (users, their sessions and
   profiles), ``running.py`` (the activity on its manager, the robot link), ``drives.py``
   (the motivation stepped every tick), ``decisions.py`` (a tick's decisions and why).
 - ``state.py``: :class:`TickRecord`, what a tick leaves: its decisions and the state

@@ -18,23 +18,27 @@ Each takes the tick's wall time ``now``: it names the decisions and what the pro
 and the agenda are told. What measures a duration (a dialog's deadline, the menu's
 timeout) reads the steady time instead (:meth:`Sessions.steady`), which a wall clock set
 back or forward does not move.
+
+The choice decides and asks its collaborators to act; it writes none of their state.
+The runner moves and clears the activities, the dialogs open and hold the questions, the
+session keeps its own record; requests come from the events through a queue.
 """
 
 from __future__ import annotations
 
 import logging
 import random
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from datetime import datetime
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from agenda import DueItem
 from dms.config import ControllerSettings
-from dms.controller.decisions import DecisionLog, choice_why, rule_why
-from dms.controller.deps import ControllerDeps, Counters, agenda_call
+from dms.controller.decisions import choice_why, rule_why
+from dms.controller.deps import ControllerDeps, agenda_call
 from dms.controller.dialogs import Dialogs
 from dms.controller.drives import Drives
-from dms.controller.events import Events
+from dms.controller.requests import Requests
 from dms.controller.running import Runner, Running
 from dms.controller.sessions import ModeChoice, Session, Sessions
 from dms.dialog import feedback_dialog
@@ -49,6 +53,9 @@ from dms.kernel.messages import (
 )
 from managers import ManagerStatus
 from memory import Profile
+
+if TYPE_CHECKING:
+    from memory.preferences import ChoiceDraw
 
 log = logging.getLogger(__name__)
 
@@ -70,27 +77,23 @@ class Choice:
         deps: ControllerDeps,
         settings: ControllerSettings,
         rng: random.Random,
-        counters: Counters,
-        log: DecisionLog,
         drives: Drives,
         sessions: Sessions,
         runner: Runner,
         dialogs: Dialogs,
-        events: Events,
+        requests: Requests,
         rule: Callable[[str], Any],
     ) -> None:
-        """``rule(component)`` evaluates a DMSL rule component (None: no rules)."""
+        """``requests``: what the events were asked, taken at the decision points;
+        ``rule(component)`` evaluates a DMSL rule component (None: no rules)."""
         self.deps = deps
         self.settings = settings
         self.rng = rng
-        self.counters = counters
-        self.log = log
         self.drives = drives
         self.sessions = sessions
         self.runner = runner
         self.dialogs = dialogs
-        self.events = events
-        self.asked = events.asked
+        self.requests = requests
         self.rule = rule
         self.reminder: Running | None = None
         """The notification that interrupted an activity, a menu or a dialog, which
@@ -118,10 +121,6 @@ class Choice:
                 if running is not None and running.user_id == session.user_id:
                     runner.cancel(running, reason, now, why)
                     sessions.record_activity(running, "cut", now)
-                    if running is runner.current:
-                        runner.current = None
-                    else:
-                        runner.suspended = None
             if self.dialogs.dialog is not None:
                 self.dialogs.end(now)
             self._forget_interrupted()
@@ -139,30 +138,18 @@ class Choice:
         running = runner.current
         if running is None:
             return
-        reply = runner.tick(running, now)
+        # an activity that ended is no longer current; the runner said how it ended
+        reply = runner.follow(running, now)
         if reply.status in (ManagerStatus.RUNNING, ManagerStatus.PAUSED, ManagerStatus.IDLE):
-            if reply.status is ManagerStatus.IDLE:
-                runner.current = None  # the manager lost it: start afresh
-            return
-        runner.current = None
+            return  # idle: the manager lost it, and the next choice starts afresh
         if reply.status is ManagerStatus.FAILED:
-            self.counters.activity_failures += 1
-            self.log.decide(
-                "fail", running.name, "activity_error", running.chosen_by, reply.detail, now
-            )
             self.sessions.record_activity(running, "failed", now)
         elif reply.status is ManagerStatus.COMPLETED:
-            self.log.decide(
-                "complete", running.name, "completed", running.chosen_by, reply.detail, now
-            )
-            session = self.sessions.session
-            if running.name == "menu" and not reply.redirect and session is not None:
-                self.sessions.note_initiative(
-                    False, now
-                )  # offered the choice, left it to the robot
-                session.robot_turn = True
+            if running.name == "menu" and not reply.redirect and self.sessions.session:
+                # offered the choice, left it to the robot
+                self.sessions.left_to_robot(now, unanswered=False)
             self._completed(running, now, ask_feedback=not reply.redirect)
-            if reply.redirect:
+            if reply.redirect is not None and reply.redirect in ACTIVITIES:  # else: said so
                 self._follow_redirect(running, reply.redirect, now)
         elif reply.status is ManagerStatus.CANCELLED:
             self.sessions.record_activity(running, "cancelled", now)
@@ -179,16 +166,6 @@ class Choice:
             )
 
     def _follow_redirect(self, running: Running, target: str, now: datetime) -> None:
-        if target not in ACTIVITIES:
-            self.log.decide(
-                "fail",
-                running.name,
-                "activity_error",
-                running.chosen_by,
-                f"redirect to unknown {target!r}",
-                now,
-            )
-            return
         if running.name == "menu":
             self.sessions.note_initiative(True, now)
             self._start(target, "user_choice", "user", now, "chosen from the menu")
@@ -209,27 +186,23 @@ class Choice:
         if running.chosen_by == "motivation":
             if ready is not None:
                 runner.cancel(running, "user_arrived", now, f"{ready} is ready to interact")
-                runner.current = None
                 return
             wanted = self.drives.behavior()
             if wanted != running.name and self._interruption_allowed():
                 dominant = self.drives.dominant() or "none"
                 runner.cancel(running, "motivation_changed", now, f"now {dominant} dominates")
-                runner.current = None
                 return
         # (b) the user asked to change
-        if self.asked:
-            asked = self.asked.pop(0)
+        asked = self.requests.take()
+        if asked is not None:
             target, chosen_by, detail = asked.target, asked.chosen_by, asked.detail
             if target != running.name:
                 runner.cancel(running, "user_request", now, detail)
                 # an app's or a caregiver's stop says nothing of what the user likes
                 outcome = "cancelled" if asked.own else "stopped"
                 self.sessions.record_activity(running, outcome, now)
-                runner.current = None
                 if runner.suspended is not None:
                     runner.cancel(runner.suspended, "user_request", now, detail)
-                    runner.suspended = None
                 self._forget_interrupted()
                 if target:
                     self._start(target, "user_request", chosen_by, now, detail)
@@ -252,16 +225,13 @@ class Choice:
                         runner.cancel(running, "agenda", now, detail, cleanup=False)
                         self.menu_again = True
                     else:
-                        runner.pause(running, "agenda", now, detail)
-                        runner.suspended = running
-                    runner.current = None
-                    self.dialogs.held = None
+                        runner.suspend(running, "agenda", now, detail)
+                    self.dialogs.forget_held()
                     self._remind(item, now)
                 return
             if item.kind == "event" and item.priority == "high" and self._interruption_allowed():
                 runner.cancel(running, "agenda", now, f"event {item.item_id} ({item.activity})")
                 self.sessions.record_activity(running, "stopped", now)
-                runner.current = None
                 self._run_agenda_item(item, now)
                 return
         # (d) the activity failed or redirected: follow_activity has seen to it
@@ -276,18 +246,12 @@ class Choice:
         limit = self.settings.menu_timeout_s
         steady = self.sessions.steady(now)
         offered = self.menu_offered or steady
-        taken = self.events.taken_at
+        taken = self.runner.taken_at
         since = max(offered, taken) if taken is not None else offered
         if running.paused or (steady - since).total_seconds() < limit:
             return False
-        runner = self.runner
-        runner.cancel(running, "user_choice", now, f"no answer in {limit:g} s")
-        runner.current = None
-        self.counters.unanswered += 1
-        self.sessions.note_initiative(False, now)
-        session = self.sessions.session
-        if session is not None:
-            session.robot_turn = True
+        self.runner.cancel(running, "user_choice", now, f"no answer in {limit:g} s")
+        self.sessions.left_to_robot(now, unanswered=True)
         return True
 
     def _interruption_allowed(self) -> bool:
@@ -304,8 +268,8 @@ class Choice:
             return  # the user may still be there: start nothing until perception says
         if ready is None or session is None:
             # step 4: no user ready, the behavior of the dominant motivation (or a request)
-            if self.asked:
-                asked = self.asked.pop(0)
+            asked = self.requests.take()
+            if asked is not None:
                 if asked.target:
                     self._start(asked.target, "user_request", asked.chosen_by, now, asked.detail)
                 return
@@ -318,11 +282,10 @@ class Choice:
                 why=Why(motivation=self.drives.why()),
             )
             return
-        if self.asked:
-            asked = self.asked.pop(0)
-            if asked.target:
-                self._start(asked.target, "user_request", asked.chosen_by, now, asked.detail)
-                return
+        asked = self.requests.take()
+        if asked is not None and asked.target:
+            self._start(asked.target, "user_request", asked.chosen_by, now, asked.detail)
+            return
         # step 6: an agenda item that is due
         for item in self.due_items(now):
             self._run_agenda_item(item, now)
@@ -330,18 +293,16 @@ class Choice:
         # step 8: now and then a general question
         if self._ask_general_question(session, now):
             return
-        if session.resume is not None:  # what she was doing when a session end cut it
-            name, chosen_by, age = session.resume
-            session.resume = None
+        resume = session.take_resume()
+        if resume is not None:  # what she was doing when a session end cut it
+            name, chosen_by, age = resume
             detail = f"cut {age:.0f} s ago when {session.user_id} left"
             if self._start(name, "resumed", chosen_by, now, detail):
                 return
         # step 6: the user's proactivity is read before every choice, so the answer to
         # the question on initiative and what the user did since count from the first
-        session.mode, session.p_user, session.mode_detail = self.choose_mode(
-            self.sessions.profile()
-        )
-        robot_turn, session.robot_turn = session.robot_turn, False
+        session.set_mode(self.choose_mode(self.sessions.profile()))
+        robot_turn = session.take_robot_turn()
         draw = None if robot_turn else self.rng.random()
         # the coin unrounded: it is compared with p_user, and rounding could flip it
         mode = ModeWhy(
@@ -391,18 +352,18 @@ class Choice:
         entertainment = self.runner.managers[ManagerName.ENTERTAINMENT]
         assert hasattr(entertainment, "choose")
         if chooser is not None and profile is not None:
-            before = chooser.last_draw
-            name = entertainment.choose(
-                self.rng, lambda rng, ex: chooser.choose(profile, rng, exclude=ex), exclude
-            )
-            # the chooser's record of this very choice; another chooser put in its place
-            # (a study's baseline) leaves none, and its draws are its own
-            drawn = chooser.last_draw
-            mine = drawn is not before and drawn is not None and drawn.activity == name
-            choice = choice_why(exclude, drawn if mine else None, chooser=True)
+            draws: list[ChoiceDraw] = []
+
+            def draw(rng: random.Random, excluded: Collection[str]) -> str:
+                drawn = chooser.choose(profile, rng, exclude=excluded)
+                draws.append(drawn)
+                return drawn.activity
+
+            name = entertainment.choose(self.rng, draw, exclude)
+            choice = choice_why(exclude, draws[-1] if draws else None)
         else:
             name = entertainment.choose(self.rng, None, exclude)
-            choice = choice_why(exclude, None, chooser=False)
+            choice = choice_why(exclude, None)
         why = why.model_copy(update={"choice": choice})
         self._start(name, "preference", "robot", now, "predicted preference", why=why)
 
@@ -427,22 +388,12 @@ class Choice:
         profile = self.sessions.profile()
         if bank is None or profile is None:
             return False
-        due = session.questions_left > 0 or (
-            self.settings.question_every > 0
-            and session.activities_done > 0
-            and session.activities_done % self.settings.question_every == 0
-            and session.last_activity is not None
-            and f"after:{session.activities_done}" not in session.asked
-        )
-        if not due:
+        if not session.question_due(self.settings.question_every):
             return False
-        session.asked.add(f"after:{session.activities_done}")
         question = bank.next_question(profile, self.rng, session.asked)
+        session.asked_question(question.id if question is not None else None)
         if question is None:
-            session.questions_left = 0
             return False
-        session.asked.add(question.id)
-        session.questions_left = max(0, session.questions_left - 1)
         self.dialogs.ask_question(question, now)
         return True
 
@@ -476,15 +427,13 @@ class Choice:
             detail = f"{item.kind} {item.item_id} during the {dialog.kind.value} dialog"
             if item.kind == "reminder":
                 dialogs.hold(now)
-                runner.suspended = paused
-                runner.current = None
+                runner.set_aside()
                 self._remind(item, now)
                 return
             dialogs.end(now)
             if paused is not None:
                 runner.cancel(paused, "agenda", now, detail)
                 self.sessions.record_activity(paused, "stopped", now)
-                runner.current = None
             self._run_agenda_item(item, now)
             return
 
@@ -498,16 +447,13 @@ class Choice:
     def _back_after(self, what: str, now: datetime) -> None:
         """What a reminder interrupted comes back when it ends: the activity resumes, the
         question is asked again, the menu is offered again."""
-        runner = self.runner
-        suspended, runner.suspended = runner.suspended, None
+        suspended = self.runner.restore()  # still paused
         menu_again, self.menu_again = self.menu_again, False
         self.reminder = None
-        if self.dialogs.held is not None:
-            runner.current = suspended  # still paused: the question is about it
+        if self.dialogs.held is not None:  # the question is about the paused activity
             self.dialogs.ask_again(now)
         elif suspended is not None:
-            runner.current = suspended
-            runner.resume(suspended, "agenda", now, f"after the {what}")
+            self.runner.resume(suspended, "agenda", now, f"after the {what}")
         elif menu_again:
             self._start("menu", "user_choice", "user", now, f"offered again after the {what}")
 
@@ -516,7 +462,7 @@ class Choice:
         else, or left)."""
         self.reminder = None
         self.menu_again = False
-        self.dialogs.held = None
+        self.dialogs.forget_held()
 
     def _run_agenda_item(self, item: DueItem, now: datetime) -> None:
         if item.kind == "reminder":

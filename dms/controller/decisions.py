@@ -59,7 +59,7 @@ class DecisionLog:
     ) -> None:
         """Note one decision; a cancel or failure explains itself by its ``detail``, a
         motivated one by the drives."""
-        self.counters.by_reason[reason] = self.counters.by_reason.get(reason, 0) + 1
+        self.counters.count_decision(reason)
         if why is None and action in ("cancel", "fail") and detail:
             why = Why(evidence=detail)
         if why is not None and why.motivation is None and reason.startswith("motivation"):
@@ -69,7 +69,7 @@ class DecisionLog:
             time=iso(now),
             action=action,
             activity=activity,
-            manager=manager_of(activity).value if activity in ACTIVITIES else None,
+            manager=manager_of(activity).value if activity and activity in ACTIVITIES else None,
             reason=reason,
             chosen_by=chosen_by,
             detail=detail,
@@ -92,13 +92,13 @@ def rule_why(component: str, result: Any) -> RuleWhy:
     )
 
 
-def choice_why(excluded: Collection[str], draw: ChoiceDraw | None, chooser: bool) -> ChoiceWhy:
+def choice_why(excluded: Collection[str], draw: ChoiceDraw | None) -> ChoiceWhy:
     """The draw that picked the robot's activity: the chooser's ``draw`` (novelty coin or
-    Thompson sampling); without it, another chooser's pick (``chooser``: a study's
-    baseline, whose draws are its own) or the entertainment manager's uniform one."""
+    Thompson sampling); a draw not explained is another chooser's pick (a study's
+    baseline, whose draws are its own); None, the entertainment manager's uniform one."""
     left_out = sorted(excluded) or None
-    if draw is None:
-        by: DrawKind = "chooser" if chooser else "random"
+    if draw is None or not draw.explained:
+        by: DrawKind = "random" if draw is None else "chooser"
         candidates = [n for n in ENTERTAINMENT_ACTIVITIES if n not in excluded]
         return ChoiceWhy(
             by=by, candidates=candidates or list(ENTERTAINMENT_ACTIVITIES), excluded=left_out

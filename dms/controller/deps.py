@@ -44,7 +44,8 @@ class ControllerDeps:
 
 @dataclass
 class Counters:
-    """Running totals for metrics and studies."""
+    """Running totals for metrics and studies, read by anyone, counted through its
+    methods (one for each thing that happens: the tallies are this object's own)."""
 
     ticks: int = 0
     decisions: int = 0
@@ -54,6 +55,31 @@ class Counters:
     misheard: int = 0
     """Utterances under ``min_speech_confidence``: speech recognition errors."""
     by_reason: dict[str, int] = field(default_factory=dict)
+
+    def count_tick(self) -> None:
+        self.ticks += 1
+
+    def count_decision(self, reason: str) -> None:
+        self.by_reason[reason] = self.by_reason.get(reason, 0) + 1
+
+    def count_recorded(self, decisions: int) -> None:
+        """The decisions a tick's record carries."""
+        self.decisions += decisions
+
+    def count_failure(self) -> None:
+        """An activity failed while it ran."""
+        self.activity_failures += 1
+
+    def count_not_loaded(self) -> None:
+        """An activity did not start: its behavior would not load."""
+        self.not_loaded += 1
+
+    def count_unanswered(self) -> None:
+        """A question, or the menu, had no answer."""
+        self.unanswered += 1
+
+    def count_misheard(self) -> None:
+        self.misheard += 1
 
 
 def agenda_call(deps: ControllerDeps, method: str, *args: Any) -> Any:

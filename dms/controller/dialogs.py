@@ -11,6 +11,7 @@ said, then asked again (see ``choice.py``).
 
 The methods here take the tick's wall time ``now``, which names what is written (the
 answers, the decision log); a dialog's own times are steady (:meth:`Sessions.steady`).
+:class:`Dialogs` alone writes which dialog is open and which is held.
 """
 
 from __future__ import annotations
@@ -19,7 +20,6 @@ from datetime import datetime, timedelta
 
 from dms.config import ControllerSettings
 from dms.controller.decisions import DecisionLog
-from dms.controller.deps import Counters
 from dms.controller.running import Runner
 from dms.controller.sessions import Sessions
 from dms.dialog import CONFIRM_STOP, Dialog, DialogKind, feedback_score
@@ -36,14 +36,12 @@ class Dialogs:
         expression: ExpressionArbiter,
         settings: ControllerSettings,
         log: DecisionLog,
-        counters: Counters,
         sessions: Sessions,
         runner: Runner,
     ) -> None:
         self.expression = expression
         self.settings = settings
         self.log = log
-        self.counters = counters
         self.sessions = sessions
         self.runner = runner
         self.dialog: Dialog | None = None
@@ -84,6 +82,7 @@ class Dialogs:
         self.expression.interrupt_source(DIALOG_SOURCE, steady)
         sessions, session = self.sessions, self.sessions.session
         answered = dialog.answer is not None
+        # counted unanswered here, before the answer acts (nothing below reads the count)
         sessions.note_interaction(dialog.channel or sessions.style(), answered, now)
         if dialog.kind is DialogKind.CONFIRM_CANCEL:
             self._close_confirm(dialog, now)
@@ -97,8 +96,6 @@ class Dialogs:
             self.question = None
             if question is not None and dialog.answer is not None and session:
                 sessions.record_answer(question, dialog.answer, now)
-        if not answered:
-            self.counters.unanswered += 1
 
     def _close_confirm(self, dialog: Dialog, now: datetime) -> None:
         """The answer to "continue or stop?": stop cancels the activity (the user's own
@@ -111,7 +108,6 @@ class Dialogs:
             self.sessions.note_initiative(True, now)
             runner.cancel(running, "confirm_cancel", now, f"the user said {dialog.answer!r}")
             self.sessions.record_activity(running, "cancelled", now)
-            runner.current = None
         else:
             why = f"the user said {dialog.answer!r}" if dialog.answer else "no answer"
             runner.resume(running, "confirm_cancel", now, why)
@@ -141,6 +137,10 @@ class Dialogs:
             return
         self.end(now)
         self.held = dialog, question
+
+    def forget_held(self) -> None:
+        """What a reminder interrupted does not come back: the held dialog is dropped."""
+        self.held = None
 
     @property
     def held_dialog(self) -> Dialog | None:

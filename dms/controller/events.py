@@ -1,8 +1,9 @@
 """Urgent inputs, handled first in a tick: requests, touches, speech, screen choices.
 
 An answer goes to the open dialog, else to the running activity; a request for an
-activity by name (from an app, by voice or on the screen) waits in :attr:`Events.asked`
-for this tick's decision point (the cancel reasons or the choice), which serves it.
+activity by name (from an app, by voice or on the screen) is put in the
+:class:`~dms.controller.requests.Requests` queue, which this tick's decision point (the
+cancel reasons or the choice) takes from.
 """
 
 from __future__ import annotations
@@ -15,7 +16,8 @@ from activities.synonyms import match_activity, requests_activity
 from dms.config import ControllerSettings
 from dms.controller.deps import ControllerDeps, Counters
 from dms.controller.dialogs import Dialogs
-from dms.controller.running import Asked, Runner
+from dms.controller.requests import Asked, Requests
+from dms.controller.running import Runner
 from dms.controller.sessions import Sessions
 from dms.dialog import Dialog, DialogKind, confirm_dialog
 from dms.faults import FaultBarrier
@@ -39,6 +41,7 @@ class Events:
         sessions: Sessions,
         runner: Runner,
         dialogs: Dialogs,
+        requests: Requests,
         reload_rules: Callable[[], None],
     ) -> None:
         self.deps = deps
@@ -48,14 +51,10 @@ class Events:
         self.sessions = sessions
         self.runner = runner
         self.dialogs = dialogs
+        self.requests = requests
         self.reload_rules = reload_rules
-        self.asked: list[Asked] = []
-        """Starts and cancels asked for, in order, served at this tick's decision point."""
         self.touches: list[tuple[str, str]] = []
         """(part, kind) of this tick's touches, for the motivation."""
-        self.taken_at: datetime | None = None
-        """When (steady time) the running activity last took words or a screen choice
-        (an answer, or a try at one): an unanswered menu's time counts from then."""
 
     def handle(self, snapshot: InputSnapshot, now: datetime) -> None:
         """Handle this tick's events in order, each under the fault barrier."""
@@ -75,7 +74,7 @@ class Events:
         elif isinstance(message, Speech):
             if message.confidence < self.settings.min_speech_confidence:
                 log.info("not understood (confidence %.2f): %r", message.confidence, message.text)
-                self.counters.misheard += 1
+                self.counters.count_misheard()
                 return
             self.on_answer(message.text, "voice", message, now)
         elif isinstance(message, ScreenChoice):
@@ -93,17 +92,17 @@ class Events:
             if self._continues(request.activity, now):
                 return  # the activity "continue or stop?" is about: go on with it
             dialogs.close_for_request(now)
-            self.asked.append(Asked(request.activity, "user", f"requested by {by}", own))
+            self.requests.put(Asked(request.activity, "user", f"requested by {by}", own))
             if own:
                 self.sessions.note_initiative(True, now)
         elif request.action == "start":
             self._refuse(request, "start needs an activity")
-        elif request.action == "cancel" and self._withdraw_pending(request.activity):
+        elif request.action == "cancel" and self.requests.withdraw(request.activity):
             pass  # asked for earlier in this tick and not started yet: it never starts
         elif request.action == "cancel" and running is not None:
             if request.activity in (None, running.name):
                 dialogs.close_for_request(now)
-                self.asked.append(Asked("", "user", f"cancel requested by {by}", own))
+                self.requests.put(Asked("", "user", f"cancel requested by {by}", own))
             else:
                 self._refuse(request, f"{request.activity} does not run ({running.name} does)")
         elif request.action == "pause" and running is not None and not running.paused:
@@ -134,14 +133,6 @@ class Events:
         dialog.offer("continue", "request")
         self.dialogs.advance(now)
         return True
-
-    def _withdraw_pending(self, activity: str | None) -> bool:
-        """Drop a start of ``activity`` still waiting in this tick; True if there was one."""
-        for asked in self.asked:
-            if asked.target and asked.target == activity:
-                self.asked.remove(asked)
-                return True
-        return False
 
     def _refuse(self, request: Request, why: str) -> None:
         """A request that cannot be served: said on ``dms/errors``, never dropped silently."""
@@ -183,8 +174,7 @@ class Events:
             return
         if dialogs.dialog is not None:
             dialogs.close_for_request(now)
-        elif self.runner.deliver(event):
-            self.taken_at = self.sessions.steady(now)
+        elif self.runner.take_words(event, self.sessions.steady(now)):
             return
         running = self.runner.current
         if (
@@ -193,7 +183,7 @@ class Events:
             and (running is None or wanted != running.name)
         ):
             detail = f"asked by {channel}: {text[:60]!r}"
-            self.asked.append(Asked(wanted, "user", detail, own=True))
+            self.requests.put(Asked(wanted, "user", detail, own=True))
             self.sessions.note_initiative(True, now)
 
     @staticmethod

@@ -1,7 +1,10 @@
 """The activity that runs, its managers, and the robot link that lets activities start.
 
-:class:`Runner` starts, pauses, resumes and cancels activities through their managers
-and says so in the decision log; what to start and when is the choice's business.
+:class:`Runner` starts, pauses, resumes, cancels and follows activities through their
+managers and says so in the decision log; what to start and when is the choice's
+business. The runner alone writes which activity is current and which is suspended: the
+call that ends an activity (a cancel, its manager's last reply) clears it, and the
+callers ask for a suspend or a restore rather than move activities themselves.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from dms.config import ControllerSettings
 from dms.controller.decisions import DecisionLog
 from dms.controller.deps import ControllerDeps, Counters
 from dms.controller.state import ActivityFacts
-from dms.kernel.activity_names import ManagerName, manager_of
+from dms.kernel.activity_names import ACTIVITIES, ManagerName, manager_of
 from dms.kernel.messages import (
     ChosenBy,
     Reason,
@@ -42,18 +45,9 @@ class Running:
     paused: bool = False
     agenda_item: DueItem | None = None
 
-
-@dataclass(frozen=True)
-class Asked:
-    """A start or cancel asked for, served at the next decision point of this tick."""
-
-    target: str
-    """The activity to start; empty for a cancel."""
-    chosen_by: ChosenBy | None
-    detail: str
-    own: bool
-    """The user's own act (voice, screen, a request ``by`` the user), not an app's or a
-    caregiver's: only the user's own acts tell their proactivity and preferences."""
+    def set_paused(self, paused: bool) -> None:
+        """Its manager paused (or resumed) it: what ``dms/state`` and the choice see."""
+        self.paused = paused
 
 
 class Runner:
@@ -84,6 +78,9 @@ class Runner:
         self._probe_at: float | None = None
         """Monotonic seconds of the next probe (a wall clock set back must not delay it)."""
         self._probe_wait_s = 0.0
+        self.taken_at: datetime | None = None
+        """When (steady time) the current activity last took words or a screen choice
+        (an answer, or a try at one): an unanswered menu's time counts from then."""
 
     def start(
         self,
@@ -104,10 +101,13 @@ class Runner:
                     "fail", name, "activity_error", chosen_by, "the robot is offline", now
                 )
             return False
+        if name not in ACTIVITIES:  # removed from the catalogue, still named by a row
+            self.log.decide("fail", name, "activity_error", chosen_by, "no such activity", now)
+            return False
         manager = manager_of(name)
         reply = self.managers[manager].start(name, self.context(name), now, args)
         if reply.status is not ManagerStatus.RUNNING:
-            self.counters.not_loaded += 1
+            self.counters.count_not_loaded()
             self.log.decide("fail", name, "activity_error", chosen_by, reply.detail, now)
             return False
         self.current = Running(
@@ -118,13 +118,46 @@ class Runner:
 
     def pause(self, running: Running, reason: Reason, now: datetime, detail: str | None) -> None:
         self.managers[running.manager].pause(now)
-        running.paused = True
+        running.set_paused(True)
         self.log.decide("pause", running.name, reason, running.chosen_by, detail, now)
 
     def resume(self, running: Running, reason: Reason, now: datetime, detail: str | None) -> None:
         self.managers[running.manager].resume(now)
-        running.paused = False
+        running.set_paused(False)
         self.log.decide("resume", running.name, reason, running.chosen_by, detail, now)
+
+    def suspend(self, running: Running, reason: Reason, now: datetime, detail: str) -> None:
+        """Pause the current ``running`` for a reminder: it waits as the suspended
+        activity, and nothing is current until the reminder starts."""
+        self.pause(running, reason, now, detail)
+        self.suspended, self.current = running, None
+
+    def set_aside(self) -> None:
+        """A reminder interrupts a dialog: the current activity (paused for "continue or
+        stop?", if any) waits as the suspended one, still paused."""
+        self.suspended, self.current = self.current, None
+
+    def restore(self) -> Running | None:
+        """After the reminder: the suspended activity is current again (still paused: the
+        caller resumes it, or asks "continue or stop?" again); returns it."""
+        self.current, self.suspended = self.suspended, None
+        return self.current
+
+    def clear(self) -> None:
+        """At shutdown, after the cancels: nothing runs any more, even what failed to
+        cancel."""
+        self.current = self.suspended = None
+
+    def forget(self, running: Running) -> None:
+        """The step following ``running`` failed: it is no longer current (the caller
+        stops it on its manager and says why, each under the fault barrier)."""
+        if running is self.current:
+            self.current = None
+
+    def failed(self, running: Running, detail: str | None, now: datetime) -> None:
+        """``running`` failed while it ran: counted and said."""
+        self.counters.count_failure()
+        self.log.decide("fail", running.name, "activity_error", running.chosen_by, detail, now)
 
     def cancel(
         self,
@@ -140,7 +173,14 @@ class Runner:
         limit = self.settings.cleanup_limit_s
         quiet = not cleanup or limit <= 0 or running is self.suspended
         cleanup_s = None if quiet else limit
+        # cleared once cancelled: while its manager cancels it (its cleanup states send
+        # their first commands), it is still the run the robot's commands belong to; a
+        # cancel that fails leaves it for the fault barrier's caller to abandon
         reply = self.managers[running.manager].cancel(now, cleanup_s)
+        if running is self.current:
+            self.current = None
+        elif running is self.suspended:
+            self.suspended = None
         if cleanup_s is not None and self.managers[running.manager].winding_down:
             self.cleaning.add(running.manager)
         self.log.decide("cancel", running.name, reason, running.chosen_by, detail, now)
@@ -154,14 +194,38 @@ class Runner:
             if not manager.winding_down:
                 self.cleaning.discard(name)
 
-    def tick(self, running: Running, now: datetime) -> ManagerReply:
-        """Tick ``running``'s manager: what its activity did."""
-        return self.managers[running.manager].tick(now)
+    def follow(self, running: Running, now: datetime) -> ManagerReply:
+        """Tick ``running``'s manager: what its activity did. An activity that ended
+        (completed, failed, cancelled, or lost by its manager) is no longer current; a
+        completion and a failure are said, as is a redirect to an unknown activity."""
+        reply = self.managers[running.manager].tick(now)
+        if reply.status in (ManagerStatus.RUNNING, ManagerStatus.PAUSED):
+            return reply
+        self.forget(running)
+        if reply.status is ManagerStatus.FAILED:
+            self.failed(running, reply.detail, now)
+        elif reply.status is ManagerStatus.COMPLETED:
+            chosen_by = running.chosen_by
+            self.log.decide("complete", running.name, "completed", chosen_by, reply.detail, now)
+            target = reply.redirect
+            if target and target not in ACTIVITIES:
+                detail = f"redirect to unknown {target!r}"
+                self.log.decide("fail", running.name, "activity_error", chosen_by, detail, now)
+        return reply
 
-    def deliver(self, event: Speech | ScreenChoice | Touch) -> bool:
-        """Hand an input to the current activity; True if it took it."""
+    def deliver(self, event: Touch) -> bool:
+        """Hand a touch to the current activity; True if it took it."""
         running = self.current
         return running is not None and self.managers[running.manager].deliver(event)
+
+    def take_words(self, event: Speech | ScreenChoice, steady: datetime) -> bool:
+        """Hand words or a screen choice to the current activity at ``steady``; True if
+        it took them (then :attr:`taken_at` says when)."""
+        running = self.current
+        if running is None or not self.managers[running.manager].deliver(event):
+            return False
+        self.taken_at = steady
+        return True
 
     def published(self, running: Running | None) -> ActivityFacts | None:
         """What ``dms/state`` says of ``running``, taken now (its state path moves on)."""

@@ -99,6 +99,110 @@ class Session:
     """The last profile read, the answers laid over it and the result: the same object
     while neither changes (the chooser caches its beliefs by profile)."""
 
+    # The session's fields change only here: the choice and :class:`Sessions` tell it
+    # what happened, and it keeps its own record.
+
+    def set_mode(self, choice: ModeChoice) -> None:
+        """Who takes the initiative, read again before every choice."""
+        self.mode, self.p_user, self.mode_detail = choice
+
+    def leave_turn_to_robot(self) -> None:
+        """The user declined the menu (or did not answer it): the next pick is the robot's."""
+        self.robot_turn = True
+
+    def take_robot_turn(self) -> bool:
+        """Whether the next pick was left to the robot; the turn is used up."""
+        turn, self.robot_turn = self.robot_turn, False
+        return turn
+
+    def take_resume(self) -> tuple[str, ChosenBy, float] | None:
+        """The activity a session end cut, to start again first; offered once."""
+        resume, self.resume = self.resume, None
+        return resume
+
+    def question_due(self, every: int) -> bool:
+        """Step 8's timing: the opening questions, then one after every ``every``
+        activities (once for each such count, which is marked asked)."""
+        done = self.activities_done
+        due = self.questions_left > 0 or (
+            every > 0
+            and done > 0
+            and done % every == 0
+            and self.last_activity is not None
+            and f"after:{done}" not in self.asked
+        )
+        if due:
+            self.asked.add(f"after:{done}")
+        return due
+
+    def asked_question(self, question_id: str | None) -> None:
+        """A general question was asked (None: the bank had none left for the user, so
+        no opening question is left either)."""
+        if question_id is None:
+            self.questions_left = 0
+            return
+        self.asked.add(question_id)
+        self.questions_left = max(0, self.questions_left - 1)
+
+    def did(self, activity: str) -> None:
+        """An activity the user may be asked about ended."""
+        self.activities_done += 1
+        self.last_activity = activity
+
+    def engaged_for(self, now: datetime, engaged: bool) -> float:
+        """Seconds (steady time) a newcomer has been seen ready and engaged, without a
+        break, as of ``now``; 0 when not ``engaged`` now."""
+        if not engaged:
+            self.engaged_since = None
+            return 0.0
+        since = self.engaged_since = self.engaged_since or now
+        return (now - since).total_seconds()
+
+    def refuse(self) -> None:
+        """A newcomer over the hourly cap: nothing of this session is stored."""
+        self.refused = True
+        self.held.clear()
+
+    def mark_stored(self) -> None:
+        """The newcomer qualified: her profile is being stored, and writes go out."""
+        self.newcomer = None
+
+    def take_held(self, session_id: str | None) -> list[Callable[[], object]]:
+        """The stored newcomer's session has its key: the writes held until now, in order."""
+        self.session_id = session_id
+        held, self.held = self.held, []
+        return held
+
+    def hold(self, write: Callable[[], object]) -> None:
+        """A write about a newcomer not stored yet, kept to be sent when she qualifies."""
+        if len(self.held) < HELD_WRITES_MAX:
+            self.held.append(write)
+        elif len(self.held) == HELD_WRITES_MAX:
+            log.warning("user %s not stored yet: later writes are dropped", self.user_id)
+            self.held.append(lambda: None)  # warned once
+
+    def with_answers(self, profile: Profile | None) -> Profile | None:
+        """``profile`` with the fields of :attr:`answered` it does not show yet; an answer
+        it shows has landed and is forgotten (a later change elsewhere then wins)."""
+        if profile is None or not self.answered:
+            return profile
+        for name, value in list(self.answered.items()):
+            if _field(profile, name) == value:
+                del self.answered[name]
+        if not self.answered:
+            return profile
+        answers = tuple(self.answered.items())
+        view = self.view
+        if view is not None and view[0] is profile and view[1] == answers:
+            return view[2]
+        update = {name: value for name, value in answers if name in FIELDS}
+        attributes = {name: value for name, value in answers if name not in FIELDS}
+        if attributes:
+            update["attributes"] = {**profile.attributes, **attributes}
+        result = profile.model_copy(update=update)
+        self.view = (profile, answers, result)
+        return result
+
 
 class Newcomers:
     """The hourly cap on new profiles, and the one-line report of the ids it refused.
@@ -249,6 +353,8 @@ class Sessions:
             session_id = None
             self._newcomer(user_id)
         agenda_call(self.deps, "user_perceived", user_id, now)
+        # read before the mode's rule, which reads nothing of the store
+        resume = self._cut_to_resume(user_id, now) if newcomer is None else None
         # the session first, so that ChooseMode sees params.user (the profile and its id)
         self.session = session = Session(
             user_id=user_id,
@@ -262,10 +368,9 @@ class Sessions:
                 now, misheard=self.counters.misheard, unanswered=self.counters.unanswered
             ),
             newcomer=newcomer,
+            resume=resume,
         )
-        session.mode, session.p_user, session.mode_detail = choose_mode(profile)
-        if newcomer is None:
-            session.resume = self._cut_to_resume(user_id, now)
+        session.set_mode(choose_mode(profile))
         log.info("user %s is ready (mode %s)", user_id, session.mode)
 
     def admit(self, now: datetime) -> None:
@@ -280,17 +385,13 @@ class Sessions:
         user = self.user
         if user is None or user.user_id != session.user_id:
             return  # unknown or somebody else: departure() sees to it
-        if not (user.present and user.ready and _engaged(user)):
-            session.engaged_since = None
-            return
-        since = session.engaged_since = session.engaged_since or now
-        if (now - since).total_seconds() < self.settings.new_user_after_s:
+        engaged = user.present and user.ready and _engaged(user)
+        if session.engaged_for(now, engaged) < self.settings.new_user_after_s or not engaged:
             return
         if self._stored(session.user_id) or self.newcomers.admit(now):
             self._store_newcomer(session)
             return
-        session.refused = True
-        session.held.clear()
+        session.refuse()
         self._newcomer(None)
         log.debug("user %s not stored: over new_profiles_per_hour", session.user_id)
 
@@ -298,19 +399,18 @@ class Sessions:
         """Make the newcomer's profile and session as of the session's start, then send
         what the session held, in order."""
         user_id, started = session.user_id, session.started
-        session.newcomer = None
+        session.mark_stored()
         self._newcomer(None)
         self._load_profile(user_id, started)
         session_id = self.profiles_call("start_session", user_id, started)
-        session.session_id = session_id if isinstance(session_id, str) else None
-        held, session.held = session.held, []
+        held = session.take_held(session_id if isinstance(session_id, str) else None)
         for write in held:
             write()
         log.info("user %s is new: profile stored", user_id)
 
     def _newcomer(self, user_id: str | None) -> None:
         if self.deps.profiles is not None:
-            self.deps.profiles.newcomer = user_id
+            self.deps.profiles.meet_newcomer(user_id)
 
     def _stored(self, user_id: str) -> bool:
         """Whether the store has a profile for ``user_id`` (or one is being written).
@@ -384,8 +484,8 @@ class Sessions:
         if self.deps.profiles is None or session is None:
             return None
         if session.newcomer is not None:
-            return _with_answers(session, session.newcomer)
-        return _with_answers(session, self.deps.profiles.cached(session.user_id))
+            return session.with_answers(session.newcomer)
+        return session.with_answers(self.deps.profiles.cached(session.user_id))
 
     def record_answer(self, question: Question, answer: str, now: datetime) -> None:
         """Store the answer to a general question; the fields it fills count from now on,
@@ -418,21 +518,17 @@ class Sessions:
             if session.refused:
                 return None
             if session.newcomer is not None:
-                self._hold(session, lambda: self.profiles_call(method, *args, **kwargs))
+                session.hold(lambda: self.profiles_call(method, *args, **kwargs))
                 return None
         return self.deps.profiles.call(method, *args, **kwargs)
-
-    @staticmethod
-    def _hold(session: Session, write: Callable[[], object]) -> None:
-        if len(session.held) < HELD_WRITES_MAX:
-            session.held.append(write)
-        elif len(session.held) == HELD_WRITES_MAX:
-            log.warning("user %s not stored yet: later writes are dropped", session.user_id)
-            session.held.append(lambda: None)  # warned once
 
     # ------------------------------------------------------------------ what the session learns
 
     def note_interaction(self, channel: str, answered: bool, now: datetime) -> None:
+        """A dialog closed, ``answered`` or not: counted (the session's metrics read the
+        count) and, with a session, written to the user's profile."""
+        if not answered:
+            self.counters.count_unanswered()
         if self.session is not None:
             channel = "screen" if channel == "screen" else "voice"
             self.profiles_call("record_interaction", self.session.user_id, channel, answered, now)
@@ -441,6 +537,15 @@ class Sessions:
         """The user took a chance to choose (``took``) or let it pass: their proactivity."""
         if self.session is not None:
             self.profiles_call("record_initiative", self.session.user_id, took, now)
+
+    def left_to_robot(self, now: datetime, unanswered: bool) -> None:
+        """The user let the menu's choice pass (said "you choose", or did not answer in
+        time: ``unanswered``): their proactivity, and the next pick is the robot's."""
+        if unanswered:
+            self.counters.count_unanswered()
+        self.note_initiative(False, now)
+        if self.session is not None:
+            self.session.leave_turn_to_robot()
 
     def record_activity(self, running: Running, outcome: str, now: datetime) -> bool:
         """Store what became of the session user's activity; True if it counts as one the
@@ -465,37 +570,13 @@ class Sessions:
             )
 
         if session.newcomer is not None and not session.refused:
-            self._hold(session, write)
+            session.hold(write)
         else:
             write()
         if running.name in NO_FEEDBACK_FOR:
             return False
-        session.activities_done += 1
-        session.last_activity = running.name
+        session.did(running.name)
         return True
-
-
-def _with_answers(session: Session, profile: Profile | None) -> Profile | None:
-    """``profile`` with the fields of ``session.answered`` it does not show yet; an answer
-    it shows has landed and is forgotten (a later change elsewhere then wins)."""
-    if profile is None or not session.answered:
-        return profile
-    for name, value in list(session.answered.items()):
-        if _field(profile, name) == value:
-            del session.answered[name]
-    if not session.answered:
-        return profile
-    answers = tuple(session.answered.items())
-    view = session.view
-    if view is not None and view[0] is profile and view[1] == answers:
-        return view[2]
-    update = {name: value for name, value in answers if name in FIELDS}
-    attributes = {name: value for name, value in answers if name not in FIELDS}
-    if attributes:
-        update["attributes"] = {**profile.attributes, **attributes}
-    result = profile.model_copy(update=update)
-    session.view = (profile, answers, result)
-    return result
 
 
 def _field(profile: Profile, name: str) -> Any:

@@ -70,7 +70,7 @@ class TickRecord:
     """The current activity (running or paused), if any."""
     suspended: ActivityFacts | None
     """The activity a reminder paused, if any."""
-    inputs: Mapping[str, Literal["ok", "stale", "missing"]]
+    inputs: Mapping[str, Literal["ok", "stale", "missing", "not_published"]]
     robot_link: Literal["ok", "offline"]
     motivation_state: MotivationState | None
     """The motivation model's own state after the tick (None before the first step)."""

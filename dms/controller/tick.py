@@ -24,6 +24,7 @@ from dms.controller.deps import ControllerDeps, Counters
 from dms.controller.dialogs import Dialogs
 from dms.controller.drives import Drives
 from dms.controller.events import Events
+from dms.controller.requests import Requests
 from dms.controller.running import Runner, Running
 from dms.controller.sessions import Sessions
 from dms.controller.state import TickRecord, UserFacts
@@ -66,9 +67,8 @@ class Controller:
         self.sessions = Sessions(deps, settings, counters)
         self.log = DecisionLog(counters, self.drives, self.sessions.account)
         self.runner = Runner(deps, settings, self.log, counters, self._context)
-        self.dialogs = Dialogs(
-            deps.expression, settings, self.log, counters, self.sessions, self.runner
-        )
+        self.dialogs = Dialogs(deps.expression, settings, self.log, self.sessions, self.runner)
+        requests = Requests()  # the events put requests, the choice takes them
         self.events = Events(
             deps,
             settings,
@@ -77,29 +77,32 @@ class Controller:
             self.sessions,
             self.runner,
             self.dialogs,
+            requests,
             self.reload_rules,
         )
         self.choice = Choice(
             deps,
             settings,
             rng,
-            counters,
-            self.log,
             self.drives,
             self.sessions,
             self.runner,
             self.dialogs,
-            self.events,
+            requests,
             self._rule,
         )
 
     # ------------------------------------------------------------------ the tick
 
     def tick(self, now: datetime, monotonic: float, urgent: bool = False) -> TickRecord:
-        """Run the decision loop once at ``now``."""
+        """Run the decision loop once at ``now``: the paper's steps, numbered as the paper
+        numbers them, in the order below."""
+        # Why not the paper's order (1, 2, ... 9): the user is followed (3, 5) and an answer
+        # taken (7) before the cancel reasons (2), so that this very tick acts for the user
+        # now in front and on the answer just given, instead of one tick later.
         self._now = now
         self._tick += 1
-        self.counters.ticks += 1
+        self.counters.count_tick()
         self.log.begin(self._tick)
         # Before anything can send a command: its timeouts count on the monotonic clock.
         self.deps.expression.set_monotonic(monotonic)
@@ -110,28 +113,35 @@ class Controller:
             self.dialogs,
             self.choice,
         )
-        # 1. Read the inputs: stale and missing ones are left out (not considered).
+        # Step 1. Read the inputs: stale and missing ones are left out (not considered).
         snapshot = self.inputs.take(monotonic)
         sessions.see(snapshot, now, monotonic)
-        # Urgent inputs first: answers to a dialog or to the running activity, the
-        # shoulder's "continue or stop?", requests for an activity by name.
+        # Step 1, the urgent inputs first: answers to a dialog or to the running activity,
+        # the shoulder's "continue or stop?", requests for an activity by name (queued
+        # for step 2's reason (b) or for step 4's and 6's choice).
         self.events.handle(snapshot, now)
+        # Step 1, the motivation's half: the drives stepped with what is perceived.
         barrier.run("motivation", sessions.user, self._motivate, snapshot, now, monotonic)
+        # Step 1, the robot's half: its feedback, the frames, the robot link.
         barrier.run("robot", None, self._follow_robot, snapshot, now, monotonic)
         if self.deps.profiles is not None:
             barrier.run("memory", None, self.deps.profiles.retry, now)
-        # 3, 5. Is a user ready? A session begins (the profile loaded or created) or ends.
+        # Steps 3 and 5. Is a user ready? A session begins (the profile loaded or created)
+        # or ends (what runs for the user who left is cut).
         barrier.run("user", sessions.user, choice.follow_user, now)
-        # 7. The answer to an open dialog (feedback, a question, "continue or stop?").
+        # Step 7 (and 8). The answer to an open dialog: feedback, a general question, or
+        # "continue or stop?" (its "stop" is step 2's reason (b)).
         dialog = dialogs.dialog
         if dialog is not None and not barrier.run(
             "dialog", dialog.kind.value, dialogs.advance, now
         ):
             self._drop_dialog(now)
+        # Step 2, after a cancel: the cancelled activities' cleanup states run on.
         if runner.cleaning:
             barrier.run("cleanup", None, runner.wind_down, now)
         if dialogs.dialog is None:
-            # 2. An activity runs: what it did, then the four reasons to cancel it.
+            # Step 2 (and 7). An activity runs: what it did (reason (d); after it ends,
+            # maybe the rating is asked), then the reasons (a) to (c) to cancel it.
             running = runner.current
             if running is not None and not barrier.run(
                 "activity", running.name, choice.follow_activity, now
@@ -142,18 +152,18 @@ class Controller:
                 "cancel", running.name, choice.check_cancel_reasons, now
             ):
                 self._abandon_current(now, "cancel")
-            # 4, 6, 8. Nothing runs: the motivation's behavior, or with a user an agenda
-            # item, a general question, or an activity chosen by their proactivity.
+            # Steps 4, 6 and 8. Nothing runs: the motivation's behavior, or with a user an
+            # agenda item, a general question, or an activity chosen by their proactivity.
             if runner.current is None and dialogs.dialog is None:
                 barrier.run("choose", sessions.ready_user(), choice.choose, now)
         else:
-            # (c) for a dialog: a due agenda item interrupts the question
+            # Step 2's reason (c) for a dialog: a due agenda item interrupts the question.
             barrier.run("agenda", sessions.ready_user(), choice.check_agenda_in_dialog, now)
         session = sessions.session
         if session is not None and session.account is not None:
-            # after the sends of this tick: see SessionAccount.on_tick
+            # Step 9's bookkeeping, after the sends of this tick: SessionAccount.on_tick.
             barrier.run("metrics", None, session.account.on_tick, now, self.deps.expression.pending)
-        # 9. The record of this pass; the daemon publishes it and ticks again.
+        # Step 9. The record of this pass; the daemon publishes it and ticks again.
         return self._record(now, urgent, snapshot)
 
     def _motivate(self, snapshot: InputSnapshot, now: datetime, monotonic: float) -> None:
@@ -182,7 +192,7 @@ class Controller:
                 barrier.run(
                     "shutdown", running.name, runner.cancel, running, "shutdown", now, cleanup=False
                 )
-        runner.current = runner.suspended = None
+        runner.clear()
         for manager in runner.managers.values():
             barrier.run("shutdown", manager.name, manager.stop_winding_down, now)
         session = self.sessions.session
@@ -193,8 +203,8 @@ class Controller:
     # ------------------------------------------------------------------ after a fault
 
     def _drop_dialog(self, now: datetime) -> None:
-        """After a fault in the dialog step: close the dialog, silence it, go on."""
-        self.dialogs.dialog = None
+        """After a fault in the dialog step: close the dialog, silence it, go on (the
+        dialog is closed first thing, even if silencing it fails)."""
         self._barrier.run("dialog/close", None, self.dialogs.end, now)
         running = self.runner.current
         if running is not None and running.paused and self.runner.suspended is not running:
@@ -215,7 +225,7 @@ class Controller:
         running = runner.current
         if running is None:
             return
-        runner.current = None
+        runner.forget(running)
         barrier.run(f"{step}/stop", running.name, runner.managers[running.manager].cancel, now)
         barrier.run(
             f"{step}/stop",
@@ -224,16 +234,13 @@ class Controller:
             f"activity:{running.name}",
             now,
         )
-        self.counters.activity_failures += 1
-        self.log.decide(
-            "fail", running.name, "activity_error", running.chosen_by, f"{step} step failed", now
-        )
+        runner.failed(running, f"{step} step failed", now)
         barrier.run(
             f"{step}/record", running.name, self.sessions.record_activity, running, "failed", now
         )
         if runner.suspended is not None and self.dialogs.dialog is None:
-            suspended, runner.suspended = runner.suspended, None
-            runner.current = suspended
+            suspended = runner.restore()
+            assert suspended is not None
             barrier.run(
                 f"{step}/resume",
                 suspended.name,
@@ -304,7 +311,7 @@ class Controller:
         self, now: datetime, urgent: bool, snapshot: InputSnapshot | None = None
     ) -> TickRecord:
         decisions = tuple(self.log.decisions)
-        self.counters.decisions += len(decisions)
+        self.counters.count_recorded(len(decisions))
         self._last = record = self.build_record(now, urgent, decisions)
         interactions, session = self.deps.interactions, self.sessions.session
         if interactions is not None:  # what happened, for the sessions' interaction events

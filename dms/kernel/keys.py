@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import re
 
-ROBOT_ID_RE = re.compile(r"^[a-z0-9_-]+$")
+ROBOT_ID_RE = re.compile(r"[a-z0-9_-]+")
+"""A robot id, matched whole (``fullmatch``): with ``match`` and ``$`` an id ending in a
+line break would pass."""
 
 # Into the daemon: state-like inputs (the latest value counts) ...
 PERCEPTION_USER = "perception/user"

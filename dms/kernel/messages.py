@@ -23,7 +23,7 @@ from pydantic import (
     model_validator,
 )
 
-from dms.kernel.activity_names import ACTIVITIES
+from dms.kernel.activity_names import ACTIVITIES, current
 from dms.kernel.ids import Identifier
 
 ROBOT_ID_PATTERN = r"^[a-z0-9_-]+$"
@@ -210,7 +210,7 @@ class Request(Inbound):
     @classmethod
     def _known_activity(cls, activity: str | None) -> str | None:
         if activity is not None and activity not in ACTIVITIES:
-            raise ValueError(f"unknown activity {activity!r}")
+            raise ValueError(current().unknown(activity))
         return activity
 
 
@@ -280,7 +280,7 @@ class MotivationSnapshot(_OmitsUnset):
     viewer's chart."""
 
 
-InputStatus = Literal["ok", "stale", "missing"]
+InputStatus = Literal["ok", "stale", "missing", "not_published"]
 Mode = Literal["motivation", "autonomous", "user_choice", "hybrid"]
 
 

@@ -8,6 +8,6 @@ one state on the simulated Mini, :mod:`dms.studio.rules` checks the DMSL rules p
 ``dms rules check`` does, :mod:`dms.studio.link` reaches a running daemon (its robot's
 joints, its frames, a try on its robot) and :mod:`dms.studio.daemon_try` is the daemon's
 side of that try. :mod:`dms.studio.app` serves it all behind the viewer's host guard and
-a token (:mod:`dms.studio.auth`), and :mod:`dms.studio.cli` is the command. The page and
-its layout library (dagre, MIT) are in ``static/``.
+the token both pages ask for (:mod:`dms.viewer.auth`), and :mod:`dms.studio.cli` is the
+command. The page and its layout library (dagre, MIT) are in ``static/``.
 """

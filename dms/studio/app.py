@@ -2,20 +2,25 @@
 
 Every request passes the viewer's :class:`~dms.viewer.guard.HostGuard` (a foreign
 ``Host`` is 421, a write from a foreign ``Origin`` 403) and then the
-:class:`~dms.studio.auth.TokenGuard` (no token, 403). The API:
+:class:`~dms.viewer.auth.TokenGuard` (no token, 403; the URL with the token sets a cookie). The API:
 
 - ``GET /api/palette``: the blocks by category with their schemas;
 - ``GET /api/behaviors``: the folder and its behaviors; ``GET /api/behaviors/NAME``
   opens one (the document and its hash);
 - ``POST /api/check`` ``{doc}``: the loader's messages and each state's outcomes;
-- ``POST /api/save`` ``{doc, hash}``: writes the file, or a draft (409: changed on disk);
+- ``POST /api/save`` ``{doc, hash, layout?}``: writes the file, or a draft (409: changed
+  on disk), and the states placed by hand beside it;
+- ``POST /api/compare`` ``{doc}``: the file on disk and what a save would write;
 - ``POST /api/try/start`` ``{doc, state?}``, ``/api/try/step``, ``/api/try/answer``
-  ``{text}``, ``/api/try/stop``: a trial on the simulated Mini;
+  ``{text}``, ``/api/try/stop``, ``/api/try/marker`` ``{seen}``: a trial on the simulated
+  Mini (the marker on its table hidden or shown);
 - ``POST /api/daemon/try`` ``{doc, state?, step?}``, ``GET /api/daemon/try?since=N``
   (its states), ``POST /api/daemon/step``, ``/api/daemon/answer`` ``{text}``,
   ``/api/daemon/stop``: a try on the daemon's robot (``--connect``), which the daemon
   may refuse;
 - ``GET /api/robot?on=daemon|sim``: the robot's joints, for the Record button;
+  ``POST /api/robot/pose`` ``{joints}``: poses the simulated Mini by hand (the sliders);
+  ``GET /api/body``: its joints' limits;
 - ``GET /api/frames``: the frames for the frame picker (the daemon's, when connected);
 - ``GET /api/rules``, ``GET /api/rules/NAME``, ``POST /api/rules/check`` ``{name, text}``,
   ``POST /api/rules/save`` ``{name, text, hash}``: the rules pane.
@@ -24,6 +29,7 @@ Every request passes the viewer's :class:`~dms.viewer.guard.HostGuard` (a foreig
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Awaitable, Callable
 from importlib import resources
 from pathlib import Path
@@ -37,14 +43,15 @@ from starlette.responses import FileResponse, Response
 from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
-from dms.kernel.body import NEUTRAL
-from dms.studio.auth import TokenGuard
+from dms.kernel.body import JOINTS, NEUTRAL
+from dms.studio import placement
 from dms.studio.errors import StudioError
 from dms.studio.folder import Folder
 from dms.studio.link import DaemonLink
 from dms.studio.palette import palette
 from dms.studio.rules import RulesFiles
-from dms.studio.trial import RobotFactory, Trial, one_state
+from dms.studio.trial import MARKER, RobotFactory, Trial, one_state
+from dms.viewer.auth import TokenGuard
 from dms.viewer.guard import WILDCARDS, HostGuard, allowed_hosts
 
 DEFAULT_FRAMES = ["user", "face:<id>", "object:<name>"]
@@ -67,9 +74,15 @@ def api(handler: Handler) -> Callable[[Request], Awaitable[Response]]:
         try:
             return reply(await handler(request))
         except StudioError as error:
-            return reply({"error": str(error)}, error.status)
+            return reply({"error": one_line(str(error))}, error.status)
 
     return endpoint
+
+
+def one_line(message: str) -> str:
+    """A refusal on one line: YAML's and the loader's messages span several (a caret
+    under the spot), and a page or a script shows the first line of what it gets."""
+    return " | ".join(line.strip() for line in message.splitlines() if line.strip())
 
 
 async def body(request: Request) -> dict[str, Any]:
@@ -108,6 +121,8 @@ class Studio:
         self.rules = rules or RulesFiles(())
         self.link = link
         self.trial: Trial | None = None
+        self.posed: dict[str, float] | None = None
+        """The simulated Mini's joints as posed by hand, until a trial moves it."""
 
     async def palette(self, _request: Request) -> Any:
         return palette()
@@ -132,8 +147,13 @@ class Studio:
         opened = data.get("hash")
         if opened is not None and not isinstance(opened, str):
             raise StudioError("hash: the one the open gave, or null for a new behavior")
-        saved = await run_in_threadpool(self.folder.save, document(data), opened)
+        layout = data.get("layout")
+        positions = placement.parse(layout) if layout is not None else None
+        saved = await run_in_threadpool(self.folder.save, document(data), opened, positions)
         return saved.to_json()
+
+    async def compare(self, request: Request) -> Any:
+        return await run_in_threadpool(self.folder.compare, document(await body(request)))
 
     async def try_start(self, request: Request) -> Any:
         data = await body(request)
@@ -143,9 +163,11 @@ class Studio:
             doc = one_state(doc, state)
         if self.trial is not None:
             self.trial.stop()
-        self.trial = await run_in_threadpool(
-            Trial, self.folder, doc, self.robot_factory(0), int(data.get("seed") or 0)
-        )
+        seed = data.get("seed") or 0
+        if not isinstance(seed, int) or isinstance(seed, bool):
+            raise StudioError("seed: a whole number, or none")
+        self.posed = None  # the trial's Mini starts from neutral
+        self.trial = await run_in_threadpool(Trial, self.folder, doc, self.robot_factory(0), seed)
         return await run_in_threadpool(self.trial.step)
 
     def _trial(self) -> Trial:
@@ -162,6 +184,12 @@ class Studio:
             raise StudioError("text: what the user says, screen:CHOICE or touch:PART")
         return {"taken": await run_in_threadpool(self._trial().answer, text)}
 
+    async def try_marker(self, request: Request) -> Any:
+        seen = (await body(request)).get("seen")
+        if not isinstance(seen, bool):
+            raise StudioError("seen: true to show the marker, false to hide it")
+        return {"seen": await run_in_threadpool(self._trial().show_marker, seen)}
+
     async def try_stop(self, _request: Request) -> Any:
         if self.trial is not None:
             await run_in_threadpool(self.trial.stop)
@@ -170,12 +198,41 @@ class Studio:
     async def robot(self, request: Request) -> Any:
         if request.query_params.get("on") == "daemon":
             return {"joints": self._link().robot_joints(), "on": "daemon"}
-        joints = self.trial.joints() if self.trial is not None else dict(NEUTRAL)
-        return {"joints": joints, "on": "sim"}
+        return {"joints": self._sim_joints(), "on": "sim"}
+
+    def _sim_joints(self) -> dict[str, float]:
+        if self.posed is not None:
+            return dict(self.posed)
+        return self.trial.joints() if self.trial is not None else dict(NEUTRAL)
+
+    async def pose(self, request: Request) -> Any:
+        joints = (await body(request)).get("joints")
+        if not isinstance(joints, dict) or not joints:
+            raise StudioError(f"joints: {{name: radians}} of {', '.join(JOINTS)}")
+        posed = self._sim_joints()
+        for name, angle in joints.items():
+            joint = JOINTS.get(name)
+            if joint is None:
+                raise StudioError(f"joints: no joint {name!r} ({', '.join(JOINTS)})")
+            if isinstance(angle, bool) or not isinstance(angle, int | float):
+                raise StudioError(f"joints: {name}: radians, a number")
+            if not math.isfinite(angle):
+                raise StudioError(f"joints: {name}: a finite number of radians")
+            posed[name] = round(joint.clamp(float(angle)), 3)
+        self.posed = posed
+        return {"joints": posed, "on": "sim"}
+
+    async def body_limits(self, _request: Request) -> Any:
+        return {
+            "joints": {
+                name: {"low": joint.low, "high": joint.high, "neutral": joint.neutral}
+                for name, joint in JOINTS.items()
+            }
+        }
 
     async def frames(self, _request: Request) -> Any:
         if self.link is None:
-            return {"frames": DEFAULT_FRAMES, "on": "sim"}
+            return {"frames": [*DEFAULT_FRAMES, MARKER], "on": "sim"}
         seen = await run_in_threadpool(self.link.frames)
         return {"frames": sorted({*seen, *DEFAULT_FRAMES}, key=frame_order), "on": "daemon"}
 
@@ -265,11 +322,15 @@ def create_app(
             Route("/api/behaviors/{name}", api(studio.open)),
             Route("/api/check", api(studio.check), methods=["POST"]),
             Route("/api/save", api(studio.save), methods=["POST"]),
+            Route("/api/compare", api(studio.compare), methods=["POST"]),
             Route("/api/try/start", api(studio.try_start), methods=["POST"]),
             Route("/api/try/step", api(studio.try_step), methods=["POST"]),
             Route("/api/try/answer", api(studio.try_answer), methods=["POST"]),
             Route("/api/try/stop", api(studio.try_stop), methods=["POST"]),
+            Route("/api/try/marker", api(studio.try_marker), methods=["POST"]),
             Route("/api/robot", api(studio.robot)),
+            Route("/api/robot/pose", api(studio.pose), methods=["POST"]),
+            Route("/api/body", api(studio.body_limits)),
             Route("/api/frames", api(studio.frames)),
             Route("/api/daemon/try", api(studio.daemon_try), methods=["POST"]),
             Route("/api/daemon/try", api(studio.daemon_states)),
@@ -289,6 +350,6 @@ def create_app(
                 port=port,
                 any_address=host in WILDCARDS,
             ),
-            Middleware(TokenGuard, token=token),
+            Middleware(TokenGuard, token=token, page="studio", command="studio", port=port),
         ],
     )

@@ -4,9 +4,9 @@ The page sends the whole behavior as JSON after each change; :func:`check_docume
 writes it as YAML, parses it with :func:`activities.spec.parse_text` (the loader the
 daemon uses) and its references with :func:`activities.spec.check_references`, and
 returns each problem with the state path and the parameter it concerns, so that the
-page shows it at the field. It adds its own warnings for placeholders that cannot bind:
-a ``{`` that starts no placeholder, or a name that is neither a namespace (``user``,
-``robot``, ``env``, ``args``, ``content``) nor a userdata key the behavior sets.
+page shows it at the field: the placeholders that bind to nothing
+(:func:`activities.checks.placeholder_problems`) are the loader's too. It adds its own
+warning for a ``{`` that starts no placeholder (the robot says it as written).
 """
 
 from __future__ import annotations
@@ -20,24 +20,22 @@ from typing import Any, Literal
 import yaml
 
 from activities.blocks import BLOCKS
+from activities.checks import ContentShapes, placeholder_problems
 from activities.errors import BehaviorError
 from activities.spec import (
-    CONTAINER_PARAMS,
     CONTAINERS,
     GROUPS,
     STATE_KEYS,
+    TOP_KEYS,
     BehaviorSpec,
     StateSpec,
     check_references,
     parse_text,
 )
-from activities.template import PLACEHOLDER, PROFILE_NAMESPACES
+from activities.template import PLACEHOLDER
 
 WHERE = "<studio>"
 """The file name given to the loader: problems start with it, then the line."""
-NAMESPACES = (*PROFILE_NAMESPACES, "args", "content")
-KEY_FIELDS = ("key", "item_key", "index_key")
-"""Parameters that name the userdata key a block or an iterator writes."""
 
 _PROBLEM = re.compile(
     r"^(?P<where>[^:]*)(?::(?P<line>\d+))?:(?: state (?P<path>[^:]*):)? (?P<msg>.*)$"
@@ -87,16 +85,24 @@ def parse_message(problem: str) -> Message:
     text = found.group("msg")
     param_match = _PARAM.search(text)
     param = param_match.group(1) if param_match else None
-    if param is None and any(word in text for word in _TRANSITION_WORDS):
+    if param is None and text.startswith("activity:"):
+        param = "activity"  # the Activity form's
+    elif param is None and any(word in text for word in _TRANSITION_WORDS):
         param = "transitions"
+    head = text.split(":", 1)[0]
+    if param is None and not found.group("path") and head in TOP_KEYS:
+        param = head  # a key at the behavior's top: shown at its field
+
     return Message(found.group("path") or "", param, text)
 
 
 def check_document(
-    doc: Mapping[str, Any], others: Mapping[str, BehaviorSpec] | None = None
+    doc: Mapping[str, Any],
+    others: Mapping[str, BehaviorSpec] | None = None,
+    content: ContentShapes | None = None,
 ) -> Report:
     """Check ``doc`` as the loader would load it beside ``others`` (the behaviors it may
-    use as states)."""
+    use as states), its placeholders against ``content`` (the content files)."""
     messages: list[Message] = []
     spec: BehaviorSpec | None = None
     try:
@@ -111,6 +117,12 @@ def check_document(
             for problem in check_references(specs)
             if problem.startswith(prefix)
         )
+        if content is not None:
+            messages.extend(
+                parse_message(problem)
+                for problem in placeholder_problems(specs, content)
+                if problem.startswith(prefix)
+            )
     ok = not messages
     messages.extend(placeholder_warnings(doc))
     return Report(ok, messages, state_outcomes(doc, others or {}))
@@ -183,36 +195,6 @@ def state_outcomes(
 # ---------------------------------------------------------------- placeholders
 
 
-def known_keys(doc: Mapping[str, Any]) -> set[str]:
-    """The userdata keys the behavior sets: ``userdata``, keys blocks write (and their
-    defaults: ``ask`` writes ``answer``), ``set_data``'s, declared and remapped keys."""
-    keys = set(_mapping(doc.get("userdata")))
-    states = doc.get("states")
-    for _path, state in walk(states if isinstance(states, dict) else {}):
-        block = block_of(state)
-        if block is None:
-            continue
-        params = _mapping(state.get(block))
-        keys.update(_mapping(params.get("userdata")))
-        model = BLOCKS[block].PARAMS if block in BLOCKS else CONTAINER_PARAMS[block]
-        for name in KEY_FIELDS:
-            if name in model.model_fields:
-                default = model.model_fields[name].default
-                value = params.get(name, default)
-                if isinstance(value, str):
-                    keys.add(value)
-        if block == "set_data":
-            for part in ("values", "add", "append"):
-                keys.update(str(key) for key in _mapping(params.get(part)))
-        for part in ("input_keys", "output_keys"):
-            value = state.get(part)
-            if isinstance(value, list):
-                keys.update(str(key) for key in value)
-        for key, value in _mapping(state.get("remapping")).items():
-            keys.update((str(key), str(value)))
-    return keys
-
-
 def _mapping(value: Any) -> dict[str, Any]:
     return value if isinstance(value, dict) else {}
 
@@ -229,8 +211,7 @@ def _strings(value: Any, param: str) -> Iterator[tuple[str, str]]:
 
 
 def placeholder_warnings(doc: Mapping[str, Any]) -> list[Message]:
-    """Placeholders that cannot bind: malformed, or naming nothing the behavior sets."""
-    keys = known_keys(doc)
+    """A ``{`` that starts no placeholder: the robot would say it as written."""
     found: list[Message] = []
     states = doc.get("states")
     for path, state in walk(states if isinstance(states, dict) else {}):
@@ -243,22 +224,13 @@ def placeholder_warnings(doc: Mapping[str, Any]) -> list[Message]:
             if key not in ("states", "state")
         }
         for param, text in (pair for key, value in params.items() for pair in _strings(value, key)):
-            found.extend(Message(path, param, note, "warning") for note in _text_notes(text, keys))
+            found.extend(Message(path, param, note, "warning") for note in _text_notes(text))
     return found
 
 
-def _text_notes(text: str, keys: set[str]) -> list[str]:
+def _text_notes(text: str) -> list[str]:
+    starts = {match.start() for match in PLACEHOLDER.finditer(text)}
     notes: list[str] = []
-    starts = set()
-    for match in PLACEHOLDER.finditer(text):
-        starts.add(match.start())
-        root = match.group(1).split(".", 1)[0]
-        if root not in NAMESPACES and root not in keys:
-            known = ", ".join(sorted(keys)) or "none yet"
-            notes.append(
-                f"placeholder {match.group(0)!r}: {root!r} is not user, robot, env, args, "
-                f"content, nor a userdata key this behavior sets ({known})"
-            )
     for index, char in enumerate(text):
         if char == "{" and index not in starts:
             end = text.find("}", index)

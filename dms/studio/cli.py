@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
+from dms.kernel.cli_options import RobotOption
 from dms.kernel.errors import ConfigError
 from dms.viewer.cli import TLS_CERT_HELP, TLS_KEY_HELP
 
@@ -81,7 +82,7 @@ def studio_command(
         Path | None,
         typer.Option(help="A Zenoh config file (a secured bus: the admin role's)."),
     ] = None,
-    robot: Annotated[str, typer.Option("--robot", help="The daemon's robot id.")] = "mini",
+    robot: RobotOption = "mini",
 ) -> None:
     """Build, try and save behaviors with the mouse, in a web page.
 
@@ -91,9 +92,9 @@ def studio_command(
     """
     from activities.library import BEHAVIORS_DIR
     from dms.studio.app import Studio, create_app
-    from dms.studio.auth import new_token
     from dms.studio.folder import Folder
     from dms.studio.rules import rules_files
+    from dms.viewer.auth import new_token
     from dms.viewer.cli import bind, page_url
     from dms.viewer.server import serve
     from dms.viewer.tls import server_context
@@ -135,6 +136,6 @@ def _connect(connect: list[str], zenoh_config: Path | None, robot: str) -> Daemo
     from dms.kernel.keys import ROBOT_ID_RE
     from dms.studio.link import DaemonLink
 
-    if not ROBOT_ID_RE.match(robot):
+    if not ROBOT_ID_RE.fullmatch(robot):
         raise ConfigError(f"--robot {robot!r}: lower-case letters, digits, _ and -")
     return DaemonLink(ZenohClient(robot, make_client_config(connect, zenoh_config)))

@@ -3,7 +3,9 @@
 Made at run time from the published JSON Schema of behavior files
 (:func:`activities.schema.json_schema`), so a new block appears on the page without
 touching it. A block's category is the module it is written in (``speech``,
-``expression``, ...), the containers are one more.
+``expression``, ...), the containers are one more. A parameter that names something of
+the robot's repertoire (a gesture, an LED pattern, a face) gets the repertoire as its
+``choices``: the page offers them in a list, as the loader accepts only them.
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ from __future__ import annotations
 from typing import Any
 
 from activities.blocks import BLOCKS
+from activities.names import NAMED
 from activities.schema import json_schema
 from activities.spec import CONTAINER_PARAMS
 
@@ -46,6 +49,9 @@ def palette() -> dict[str, Any]:
         block = next(iter(variant["required"]))
         params = variant["properties"][block]
         props = params["properties"]
+        for (named_block, param), (_what, repertoire) in NAMED.items():
+            if named_block == block and param in props:
+                props[param] = {**props[param], "choices": list(repertoire)}
         holds = "states" if "states" in props else "state" if "state" in props else None
         outcomes = list(BLOCKS[block].OUTCOMES) if block in BLOCKS else []
         by_category.setdefault(_category(block), []).append(

@@ -6,7 +6,9 @@ state and reports the state path (the page lights it), the userdata and what cha
 the robot's commands, and what the robot shows: its last sentence, its screen and its
 joints. One state alone runs as a behavior of that one state whose outcomes end it.
 A user sits in front of the simulated Mini (the frame ``user``), so that ``look_at``,
-``point_at`` and ``attend`` turn its joints as they would toward a person.
+``point_at`` and ``attend`` turn its joints as they would toward a person, and a marker
+lies on the table (``object:tag``), which the page may hide and show again: a task frame
+defined on it stays where it was last known while it is hidden.
 """
 
 from __future__ import annotations
@@ -38,12 +40,17 @@ SAID_KEPT = 6
 USER_FACE_AT = (0.8, 0.25, 0.45)
 """Where the trial's user's face is, in metres from the robot's base: in front, a little to
 its left, at head height."""
+MARKER = "object:tag"
+MARKER_AT = (0.5, -0.2, 0.0)
+"""Where the trial's marker lies: on the table, in front of the robot, a little to its right."""
 
 
 def seated_user(now: datetime) -> FrameStore:
-    """The body's frames and a user's face seen at ``now`` (live for the whole trial)."""
+    """The body's frames, a user's face and the marker seen at ``now`` (live for the whole
+    trial, unless the marker is hidden)."""
     frames = FrameStore(body_frames(NEUTRAL))
     frames.set("user", pose(USER_FACE_AT), stamp=now)
+    frames.set(MARKER, pose(MARKER_AT), stamp=now)
     return frames
 
 
@@ -103,6 +110,19 @@ class Trial:
             except ValueError as error:
                 raise StudioError(f"not understood: {str(error).splitlines()[0]}") from None
             return event is not None and self.run.deliver(event)
+
+    def show_marker(self, seen: bool) -> bool:
+        """Hide the marker (the scene forgets it, as when it is taken away) or show it
+        again where it lies; whether it is seen now."""
+        with self.lock:
+            frames = self.run.activity.runtime.ctx.frames
+            if frames is None:
+                return False
+            if seen:
+                frames.set(MARKER, pose(MARKER_AT), stamp=self.run.clock.now())
+            else:
+                frames.forget(MARKER)
+            return seen
 
     def stop(self) -> None:
         with self.lock:

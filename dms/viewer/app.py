@@ -10,7 +10,9 @@ model holds, then each change as it happens: ``robot``, ``state``, ``decision``,
 /api/snapshot`` is the snapshot as JSON (for scripts and tests). A page that falls too far
 behind is cut off; its browser reconnects at once and starts again from a fresh snapshot.
 When the viewer stops, :meth:`LiveModel.end_streams` ends every stream at once. Every
-request goes through :class:`~dms.viewer.guard.HostGuard` first (DNS rebinding).
+request goes through :class:`~dms.viewer.guard.HostGuard` first (DNS rebinding), then
+:class:`~dms.viewer.auth.TokenGuard` (no token, 403: the page shows residents' ids and
+what they said).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from starlette.responses import FileResponse, JSONResponse, Response, StreamingR
 from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
+from dms.viewer.auth import TokenGuard
 from dms.viewer.guard import WILDCARDS, HostGuard, allowed_hosts
 from dms.viewer.model import LiveModel
 
@@ -48,10 +51,14 @@ def sse(name: str, data: Any) -> str:
 
 
 def create_app(
-    model: LiveModel, port: int, host: str = "127.0.0.1", allow_hosts: tuple[str, ...] = ()
+    model: LiveModel,
+    token: str,
+    port: int,
+    host: str = "127.0.0.1",
+    allow_hosts: tuple[str, ...] = (),
 ) -> Starlette:
     """The app serving ``model`` on ``host:port`` (``0.0.0.0`` or ``::``: every interface,
-    reached by any of its addresses or ``allow_hosts``' names)."""
+    reached by any of its addresses or ``allow_hosts``' names) to whoever has ``token``."""
 
     async def index(_request: Request) -> Response:
         return FileResponse(STATIC / "index.html", headers={"Cache-Control": "no-store"})
@@ -115,6 +122,7 @@ def create_app(
                 hosts=allowed_hosts(host, port, allow_hosts),
                 port=port,
                 any_address=host in WILDCARDS,
-            )
+            ),
+            Middleware(TokenGuard, token=token, page="viewer", command="view", port=port),
         ],
     )

@@ -1,4 +1,8 @@
-"""``dms view``: serve the live page of the daemons on the bus until Ctrl-C."""
+"""``dms view``: serve the live page of the daemons on the bus until Ctrl-C.
+
+It prints a URL carrying the token the page asks for (:mod:`dms.viewer.auth`), as
+``dms studio`` does: open it, and the browser keeps the token in a cookie.
+"""
 
 from __future__ import annotations
 
@@ -8,6 +12,7 @@ from typing import Annotated
 
 import typer
 
+from dms.kernel.cli_options import ConnectOption, ZenohConfigOption
 from dms.kernel.errors import ConfigError
 from dms.kernel.keys import ROBOT_ID_RE
 from dms.viewer.tls import refuse_clear_text
@@ -20,7 +25,7 @@ TLS_KEY_HELP = "The PEM private key of --tls-cert, without a passphrase."
 
 def check_robot_ids(robots: list[str]) -> list[str]:
     for robot in robots:
-        if not ROBOT_ID_RE.match(robot):
+        if not ROBOT_ID_RE.fullmatch(robot):
             raise ConfigError(f"--robot: {robot!r} does not match [a-z0-9_-]+")
     return robots
 
@@ -50,24 +55,16 @@ def bind(host: str, port: int, page: str, tls: bool) -> socket.socket:
 
 
 def view_command(
-    connect: Annotated[
-        list[str] | None,
-        typer.Option(
-            help="Zenoh endpoint of a daemon or router (repeat for more).",
-            show_default="tcp/127.0.0.1:7447",
-        ),
-    ] = None,
-    zenoh_config: Annotated[
-        Path | None, typer.Option("--zenoh-config", help="Zenoh JSON5 configuration file.")
-    ] = None,
+    connect: ConnectOption = None,
+    zenoh_config: ZenohConfigOption = None,
     port: Annotated[
         int, typer.Option(min=0, max=65535, help="HTTP port (0: any free port).")
     ] = DEFAULT_PORT,
     host: Annotated[
         str,
         typer.Option(
-            help="Address to serve on; the page has no login: another than loopback "
-            "needs --tls-cert and --tls-key."
+            help="Address to serve on; another than loopback needs --tls-cert and "
+            "--tls-key (the token would cross the network in the clear)."
         ),
     ] = "127.0.0.1",
     tls_cert: Annotated[Path | None, typer.Option("--tls-cert", help=TLS_CERT_HELP)] = None,
@@ -97,6 +94,7 @@ def view_command(
     """
     from dms.bus import ZenohClient, make_client_config
     from dms.viewer.app import create_app
+    from dms.viewer.auth import new_token
     from dms.viewer.model import LiveModel
     from dms.viewer.server import serve
     from dms.viewer.source import BusSource
@@ -115,10 +113,11 @@ def view_command(
             source.start()
             try:
                 address = sock.getsockname()
-                url = f"{page_url(tls is not None, host, address[1])}/"
+                token = new_token()
+                url = f"{page_url(tls is not None, host, address[1])}/?token={token}"
                 watched = ", ".join(robots) if robots else "every robot on the bus"
                 ready = f"dms: viewer on {url} ({watched}); Ctrl-C stops"
-                app = create_app(model, address[1], host, tuple(allow_host or ()))
+                app = create_app(model, token, address[1], host, tuple(allow_host or ()))
                 serve(app, sock, ready, on_exit=model.end_streams, tls=tls)
             finally:
                 source.close()

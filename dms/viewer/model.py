@@ -119,7 +119,7 @@ class RobotView:
 def robot_of(key_expr: str) -> str | None:
     """The robot id of ``robots/<id>/...``, or None."""
     parts = key_expr.split("/", 2)
-    if len(parts) < 3 or parts[0] != "robots" or not keys.ROBOT_ID_RE.match(parts[1]):
+    if len(parts) < 3 or parts[0] != "robots" or not keys.ROBOT_ID_RE.fullmatch(parts[1]):
         return None
     return parts[1]
 

@@ -57,18 +57,28 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGINT, ask_to_stop)
     signal.signal(signal.SIGTERM, ask_to_stop)
 
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.lifecycle import TransitionCallbackReturn
-    from rclpy.signals import SignalHandlerOptions
-    from rclpy.utilities import remove_ros_args
+    try:
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.lifecycle import TransitionCallbackReturn
+        from rclpy.signals import SignalHandlerOptions
+        from rclpy.utilities import remove_ros_args
 
+        from dms_ros2.bridge import Bridge
+    except ImportError as error:  # rclpy's own message spans lines and names no cause
+        first = str(error).strip().splitlines()[0] if str(error).strip() else repr(error)
+        print(
+            f"dms ros2: ROS 2's client library cannot be loaded: {first} (LD_LIBRARY_PATH "
+            f"{os.environ.get('LD_LIBRARY_PATH', '(unset)')}; `dms ros2` sets the "
+            "environment the bridge needs)",
+            file=sys.stderr,
+        )
+        return 1
     from dms_ros2 import topics
-    from dms_ros2.bridge import Bridge
 
     full = sys.argv if argv is None else ["dms_ros2", *argv]
     args = parse(remove_ros_args(full)[1:])
-    if not topics.ROBOT_ID_RE.match(args.robot):
+    if not topics.ROBOT_ID_RE.fullmatch(args.robot):
         print(
             f"dms ros2: --robot {args.robot!r}: lower-case letters, digits, _ and -",
             file=sys.stderr,
@@ -80,7 +90,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if not args.unconfigured:
             if bridge.trigger_configure() != TransitionCallbackReturn.SUCCESS:
-                print("dms ros2: the node could not be configured (see above)", file=sys.stderr)
+                why = bridge.failure or "an error in ROS 2 itself, its log says which"
+                print(f"dms ros2: the node could not be configured: {why}", file=sys.stderr)
                 return 1
             bridge.trigger_activate()
         executor = SingleThreadedExecutor()

@@ -114,24 +114,37 @@ class Bridge(LifecycleNode):
         self._alive = False
         self._last_user: dict[str, Any] | None = None
         self._frames = convert.Frames(self.frame_id)
+        self.failure: str | None = None
+        """Why the last configure failed, in one line; None when it did not."""
 
     # -- lifecycle -------------------------------------------------------------------
 
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
-        """Open the Zenoh session and make every endpoint; log what is bridged."""
+        """Open the Zenoh session and make every endpoint; log what is bridged. On a
+        failure, :attr:`failure` says why: rclpy drops an exception raised here, and
+        the ROS log may go where nobody reads it."""
+        self.failure = None
         try:
             self._session = zenoh.open(zenoh_config(self.connect, self.config_file))
         except (zenoh.ZError, ValueError, OSError) as error:
+            return self._failed(f"cannot open the Zenoh session: {' '.join(str(error).split())}")
+        try:
+            self._make_ros_endpoints()
+            self._make_zenoh_endpoints(self._session)
+        except Exception as error:  # rclpy would turn it into ERROR without a word
+            self.close_zenoh()
             reason = " ".join(str(error).split())
-            self.get_logger().error(f"cannot open the Zenoh session: {reason}")
-            return TransitionCallbackReturn.FAILURE
-        self._make_ros_endpoints()
-        self._make_zenoh_endpoints(self._session)
+            return self._failed(f"cannot make its endpoints: {type(error).__name__}: {reason}")
         logger = self.get_logger()
         logger.info(f"bridging robot {self.robot_id} over Zenoh {self.connect or '(file)'}:")
         for line in topics.table(self.robot_id):
             logger.info(f"  {line}")
         return TransitionCallbackReturn.SUCCESS
+
+    def _failed(self, reason: str) -> TransitionCallbackReturn:
+        self.failure = reason
+        self.get_logger().error(reason)
+        return TransitionCallbackReturn.FAILURE
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
         self._active.set()

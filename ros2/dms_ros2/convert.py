@@ -29,8 +29,13 @@ MAX_NAMED = 256
 HEAD = Point(x=0.06, y=0.0, z=0.45)
 """Where the robot's camera is at rest, for the arrow of where it looks."""
 
-INPUT_LEVELS = {"ok": DiagnosticStatus.OK, "stale": DiagnosticStatus.WARN}
-"""An input's status in ``dms/state`` as a diagnostic level; anything else is an error."""
+INPUT_LEVELS = {
+    "ok": DiagnosticStatus.OK,
+    "not_published": DiagnosticStatus.OK,
+    "stale": DiagnosticStatus.WARN,
+}
+"""An input's status in ``dms/state`` as a diagnostic level; anything else is an error
+(``not_published``: parameters nobody ever sent, as on most robots, are no fault)."""
 
 
 def stamp_of(seconds: float) -> Time:

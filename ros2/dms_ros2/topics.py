@@ -13,8 +13,8 @@ import re
 from dataclasses import dataclass
 from enum import Enum
 
-ROBOT_ID_RE = re.compile(r"^[a-z0-9_-]+$")
-"""The contract's robot ids."""
+ROBOT_ID_RE = re.compile(r"[a-z0-9_-]+")
+"""The contract's robot ids, matched whole (``fullmatch``: ``$`` lets a line break end one)."""
 
 
 class Direction(Enum):

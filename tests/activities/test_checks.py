@@ -163,7 +163,7 @@ def test_keys_written_by_states_and_content_fields_bind(tmp_path: Path) -> None:
                 set_data: {values: {last: "{q}"}, append: {seen: "{decision}"}}
                 transitions: {done: END}
               END:
-                speak: {text: "{last.answer} {seen.0} {user.nmae} {args.anything}"}
+                speak: {text: "{last.answer} {seen.0} {user.name} {user.hobbies} {args.anything}"}
                 transitions: {done: done}
             """,
         )
@@ -207,16 +207,66 @@ def test_a_misspelled_key_or_content_file_is_refused_with_the_close_name(
     ]
 
 
-def test_a_placeholder_with_a_default_is_never_a_problem(tmp_path: Path) -> None:
+def test_a_default_stands_in_for_a_value_not_set_yet(tmp_path: Path) -> None:
     text = """
         name: b
         outcomes: [done]
         states:
           A:
-            speak: {text: "Hello{nobody|}, {user.name|friend}."}
+            speak: {text: "Hello{nobody|}, {user.name|friend}, {user.pet|dear}."}
             transitions: {done: done}
         """
     assert _problems(tmp_path, text) == []
+
+
+def test_a_misspelled_profile_field_is_refused_even_with_a_default(tmp_path: Path) -> None:
+    text = """
+        name: b
+        outcomes: [done]
+        states:
+          A:
+            speak: {text: "Hello {user.nmae|there}, {user.pet}."}
+            transitions: {done: done}
+        """
+    where = tmp_path / "b.yaml"
+    assert _problems(tmp_path, text) == [
+        f"{where}:5: state A: speak: parameter 'text': {{user.nmae}} binds to nothing: "
+        "user has no field 'nmae'; did you mean {user.name}?",
+        f"{where}:5: state A: speak: parameter 'text': {{user.pet}} binds to nothing: "
+        "user has no field 'pet' (a free attribute: give a default, "
+        "{user.pet|...}, for users without it)",
+    ]
+
+
+def test_a_profile_parameter_a_state_sets_binds(tmp_path: Path) -> None:
+    text = """
+        name: b
+        outcomes: [done]
+        states:
+          KEEP:
+            set_param: {name: nickname, value: Bob}
+            transitions: {done: SAY}
+          SAY:
+            speak: {text: "Hello {user.nickname}, {user.occupation}, {user.favorite_room}."}
+            transitions: {done: done}
+        """
+    assert _problems(tmp_path, text) == []
+
+
+@pytest.mark.parametrize(
+    ("block", "param"), [("speak", "text"), ("ask", "question"), ("gesture", "name")]
+)
+def test_a_required_text_left_empty_is_refused(tmp_path: Path, block: str, param: str) -> None:
+    text = f"""
+        name: b
+        outcomes: [done]
+        states:
+          A:
+            {block}: {{{param}: "  "}}
+            transitions: {{done: done}}
+        """
+    (problem,) = [p for p in _problems(tmp_path, text) if f"parameter {param!r}" in p]
+    assert problem.endswith(f"{block}: parameter {param!r} is empty: write it (it is required)")
 
 
 def test_a_behavior_used_as_a_state_sees_its_users_keys(tmp_path: Path) -> None:
@@ -401,3 +451,23 @@ def test_a_reload_refuses_a_misspelled_placeholder_and_keeps_the_old_version(
     (problem,) = library.reload()
     assert problem.startswith(f"{jokes}:") and "did you mean {joke.punchline}?" in problem
     assert library.spec("jokes") is before
+
+
+def test_behavior_check_refuses_a_misspelled_profile_field_and_an_empty_text(
+    tmp_path: Path,
+) -> None:
+    path = tmp_path / "hello.yaml"
+    path.write_text(
+        "name: hello\noutcomes: [done]\nstates:\n"
+        "  HI:\n    speak: {text: 'Hello {user.nmae|there}!'}\n    transitions: {done: BYE}\n"
+        "  BYE:\n    speak: {text: ''}\n"
+    )
+    checked = dms("behavior", "check", str(path))
+    assert checked.returncode == 1, checked.stdout + checked.stderr
+    assert f"{path}:8: state BYE: speak: parameter 'text' is empty" in checked.stdout
+    path.write_text(path.read_text().replace("{text: ''}", "{text: 'Bye!'}"))
+    checked = dms("behavior", "check", str(path))
+    assert checked.returncode == 1, checked.stdout + checked.stderr
+    assert "{user.nmae} binds to nothing: user has no field 'nmae'; did you mean {user.name}?" in (
+        checked.stdout
+    )

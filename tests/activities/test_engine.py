@@ -238,6 +238,41 @@ def test_iterator_runs_once_per_item_and_breaks(make: Any) -> None:
     assert activity.result.outcome == "found"
 
 
+def test_a_machine_entered_again_gives_its_states_its_new_userdata(make: Any) -> None:
+    """A machine with declared keys starts each run on fresh userdata; its states,
+    entered again, read and write that, not the last run's."""
+    bench: Bench = make(
+        {
+            "twice": """
+            name: twice
+            outcomes: [done]
+            states:
+              EACH:
+                iterator:
+                  items: [1, 2, 3]
+                  item_key: round
+                  continue_on: [done]
+                  exhausted: done
+                  state:
+                    INNER:
+                      state_machine:
+                        outcomes: [done]
+                        userdata: {count: 0}
+                        states:
+                          ADD:
+                            set_data: {add: {count: 2}}
+                            transitions: {done: SAY}
+                          SAY:
+                            speak: {text: "round {round}: {count}"}
+                      input_keys: [round]
+            """
+        }
+    )
+    activity = bench.start(bench.create("twice"))
+    assert bench.finish(activity) is ActivityStatus.COMPLETED
+    assert bench.said() == ["round 1: 2", "round 2: 2", "round 3: 2"]
+
+
 # ------------------------------------------------------------------ pause and resume
 
 

@@ -21,6 +21,6 @@ def db_url(tmp_path: Path) -> str:
 
 @pytest.fixture
 def agenda(db_url: str) -> Iterator[Agenda]:
-    store = Agenda(db_url)
+    store = Agenda.open(db_url)
     yield store
     store.close()

@@ -116,14 +116,14 @@ def test_an_occurrence_superseded_by_the_next_one_is_missed(agenda: Agenda) -> N
 
 
 def test_restart_delivers_within_grace_and_records_beyond_it_never_twice(db_url: str) -> None:
-    first = Agenda(db_url)
+    first = Agenda.open(db_url)
     soon = first.add(reminder(at=START + timedelta(hours=1), grace_s=1800), START)
     early = first.add(reminder(at=START + timedelta(minutes=30), text="Pills", grace_s=600), START)
     daily = first.add(event(cron="0 8 * * *", grace_s=600), START)
     first.close()  # the daemon stops at 09:00 ...
 
     back = START + timedelta(hours=1, minutes=20)  # ... and starts again at 10:20
-    second = Agenda(db_url)
+    second = Agenda.open(db_url)
     waiting = second.recover(back)
     assert [w.item_id for w in waiting] == [soon.item_id]
     missed = second.missed_log("ann")
@@ -135,7 +135,7 @@ def test_restart_delivers_within_grace_and_records_beyond_it_never_twice(db_url:
     second.delivered(due, back)
     second.close()
 
-    third = Agenda(db_url)
+    third = Agenda.open(db_url)
     assert third.recover(back + MIN) == []
     assert third.due(back + MIN, "ann") == []
     assert len(third.missed_log("ann")) == 1
@@ -147,10 +147,10 @@ def test_restart_delivers_within_grace_and_records_beyond_it_never_twice(db_url:
 
 
 def test_a_long_outage_is_one_missed_run_with_its_count(db_url: str) -> None:
-    first = Agenda(db_url)
+    first = Agenda.open(db_url)
     item = first.add(reminder(every=60, grace_s=0), START)
     first.close()
-    second = Agenda(db_url)
+    second = Agenda.open(db_url)
     later = START + timedelta(days=1)
     second.recover(later + 30 * S)
     (run,) = second.missed_log("ann")
@@ -164,11 +164,11 @@ def test_a_long_outage_is_one_missed_run_with_its_count(db_url: str) -> None:
 
 
 def test_missed_records_written_late_survive_a_crash_as_one_record(db_url: str) -> None:
-    first = Agenda(db_url)
+    first = Agenda.open(db_url)
     first.add(reminder(at=START + MIN, grace_s=0), START)
     assert first.due(START + 2 * MIN, None) == []  # missed, queued, not yet written
     # The process dies without close(): a new agenda finds the miss again.
-    second = Agenda(db_url)
+    second = Agenda.open(db_url)
     second.recover(START + 3 * MIN)
     assert [m.count for m in second.missed_log("ann")] == [1]
     first.close()  # the late writer finds it already logged and does not duplicate it
@@ -189,9 +189,9 @@ def test_remove_forgets_the_item_but_keeps_its_log(agenda: Agenda) -> None:
 
 
 def test_a_perceived_user_gets_items_added_and_removed_elsewhere(db_url: str) -> None:
-    daemon = Agenda(db_url)
+    daemon = Agenda.open(db_url)
     kept = daemon.add(reminder(at=START + timedelta(hours=2)), START)
-    cli = Agenda(db_url)
+    cli = Agenda.open(db_url)
     added = cli.add(reminder(at=START + timedelta(hours=1), text="Call Bea"), START)
     cli.remove(kept.item_id)
     cli.close()
@@ -271,7 +271,7 @@ def test_bad_input_is_one_line_and_stores_nothing(
 
 def test_unknown_user_is_refused_when_the_profile_store_says_so(db_url: str) -> None:
     known = {"ann"}
-    agenda = Agenda(db_url, user_exists=known.__contains__)
+    agenda = Agenda.open(db_url, user_exists=known.__contains__)
     agenda.add(reminder(at=START + MIN), START)
     with pytest.raises(AgendaError, match="unknown user 'zoe'"):
         agenda.add(reminder(user_id="zoe", at=START + MIN), START)
@@ -294,14 +294,14 @@ def test_fresh_database_is_created_at_head_and_an_old_one_is_refused(
     tmp_path: Path, db_url: str
 ) -> None:
     assert not migrations.is_current(db_url)
-    Agenda(db_url).close()
+    Agenda.open(db_url).close()
     assert migrations.is_current(db_url)
     old = tmp_path / "old.db"
     with sqlite3.connect(old) as connection:
         connection.execute("CREATE TABLE alembic_version_agenda (version_num VARCHAR(32))")
         connection.execute("INSERT INTO alembic_version_agenda VALUES ('agenda_0001')")
     with pytest.raises(AgendaError, match="dms db upgrade"):
-        Agenda(f"sqlite:///{old}")
+        Agenda.open(f"sqlite:///{old}")
 
 
 def test_a_database_that_cannot_be_opened_is_one_line(tmp_path: Path) -> None:
@@ -309,7 +309,7 @@ def test_a_database_that_cannot_be_opened_is_one_line(tmp_path: Path) -> None:
         if url.startswith("sqlite"):
             (tmp_path / "file").write_text("a file where a folder should be")
         with pytest.raises(AgendaError, match="cannot open the agenda") as error:
-            Agenda(url)
+            Agenda.open(url)
         assert "\n" not in str(error.value)
 
 
@@ -319,7 +319,7 @@ def test_the_agenda_shares_the_database_with_other_alembic_histories(db_url: str
         connection.execute("CREATE TABLE alembic_version_memory (version_num VARCHAR(32))")
         connection.execute("INSERT INTO alembic_version_memory VALUES ('memory_0001')")
         connection.execute("CREATE TABLE profiles (id TEXT)")
-    agenda = Agenda(db_url)
+    agenda = Agenda.open(db_url)
     agenda.close()
     with sqlite3.connect(path) as connection:
         memory = connection.execute("SELECT version_num FROM alembic_version_memory").fetchall()

@@ -55,7 +55,7 @@ def _journal(db_url: str) -> Path:
 def test_a_delivery_is_journaled_before_delivered_returns_and_replayed_once(
     db_url: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    first = Agenda(db_url, journal=True)
+    first = Agenda.open(db_url, journal=True)
     item = first.add(reminder(at=START + 10 * MIN, grace_s=1800), START)
     fire = START + 10 * MIN
     with monkeypatch.context() as patch:
@@ -65,14 +65,14 @@ def test_a_delivery_is_journaled_before_delivered_returns_and_replayed_once(
         lines = [json.loads(line) for line in _journal(db_url).read_text().splitlines()]
         assert [(e["item_id"], e["outcome"]) for e in lines] == [(item.item_id, "delivered")]
     # kill -9: `first` is never closed; the daemon starts again within the grace time
-    second = Agenda(db_url, journal=True)
+    second = Agenda.open(db_url, journal=True)
     assert second.recover(fire + MIN) == []
     assert second.due(fire + MIN, "ann") == []
     (delivered,) = second.history("ann", Outcome.DELIVERED)
     assert (delivered.item_id, delivered.fire_time) == (item.item_id, fire)
     second.close()
     assert not _journal(db_url).exists()  # replayed and marked done: nothing left
-    third = Agenda(db_url, journal=True)
+    third = Agenda.open(db_url, journal=True)
     assert third.recover(fire + 2 * MIN) == []
     assert len(third.history("ann")) == 1
     third.close()
@@ -82,7 +82,7 @@ def test_a_journal_replayed_twice_logs_each_occurrence_once(
     db_url: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The crash came after the database took the records but before they were marked done."""
-    first = Agenda(db_url, journal=True)
+    first = Agenda.open(db_url, journal=True)
     item = first.add(reminder(every=300, grace_s=3600), START)
     with monkeypatch.context() as patch:
         patch.setattr(writer, "write_records", _locked)
@@ -98,7 +98,7 @@ def test_a_journal_replayed_twice_logs_each_occurrence_once(
     # ... but say the crash came before that mark reached the disk
     _journal(db_url).write_text("".join(json.dumps(e) + "\n" for e in entries))
 
-    second = Agenda(db_url, journal=True)
+    second = Agenda.open(db_url, journal=True)
     assert [h.fire_time for h in second.history("ann")] == [START + 5 * MIN, START + 10 * MIN]
     (next_one,) = second.upcoming("ann", START + 11 * MIN)
     assert next_one.item_id == item.item_id
@@ -109,31 +109,31 @@ def test_a_journal_replayed_twice_logs_each_occurrence_once(
 def test_a_journal_the_database_will_not_take_at_start_still_holds_the_cursor(
     db_url: str, database_down: None
 ) -> None:
-    first = Agenda(db_url, journal=True)
+    first = Agenda.open(db_url, journal=True)
     fire = START + 10 * MIN
     first.add(reminder(at=fire, grace_s=1800), START)
     (due,) = first.due(fire, "ann")
     first.delivered(due, fire)
     # kill -9, and the database is still locked when the daemon starts again
-    second = Agenda(db_url, journal=True)
+    second = Agenda.open(db_url, journal=True)
     assert second.recover(fire + MIN) == []
     assert second.due(fire + MIN, "ann") == []
     assert len(read_spool(_journal(db_url)).pending) == 1  # kept for later
 
 
 def test_a_torn_last_line_is_skipped(db_url: str) -> None:
-    first = Agenda(db_url, journal=True)
+    first = Agenda.open(db_url, journal=True)
     first.add(reminder(at=START + 10 * MIN), START)
     first.close()
     _journal(db_url).write_text('{"item_id": 1, "outco')
-    second = Agenda(db_url, journal=True)
+    second = Agenda.open(db_url, journal=True)
     assert second.history("ann") == []
     assert second.due(START + 10 * MIN, "ann") != []
     second.close()
 
 
 def test_the_command_line_and_the_simulator_do_not_journal(db_url: str) -> None:
-    agenda = Agenda(db_url)  # background=False: no journal unless asked
+    agenda = Agenda.open(db_url)  # background=False: no journal unless asked
     agenda.add(reminder(at=START + 10 * MIN), START)
     (due,) = agenda.due(START + 10 * MIN, "ann")
     agenda.delivered(due, START + 10 * MIN)
@@ -160,7 +160,7 @@ def test_deliveries_wait_out_a_locked_database_and_land_when_it_is_free(db_url: 
     the deliveries wait in the journal (one report for the outage, health degraded), and
     land in order when the lock is released, off the tick."""
     reports = Reports()
-    agenda = Agenda(db_url, background=True, poll_s=None, report=reports)
+    agenda = Agenda.open(db_url, background=True, poll_s=None, report=reports)
     first = agenda.add(reminder(at=START + 10 * MIN, grace_s=1800), START)
     second = agenda.add(reminder(at=START + 11 * MIN, grace_s=1800), START)
     got = agenda.due(START + 11 * MIN, "ann")  # both claimed
@@ -193,7 +193,7 @@ def test_deliveries_wait_out_a_locked_database_and_land_when_it_is_free(db_url: 
 def test_a_torn_journal_line_is_kept_aside_and_reported_and_the_start_goes_on(
     db_url: str,
 ) -> None:
-    first = Agenda(db_url, journal=True)
+    first = Agenda.open(db_url, journal=True)
     item = first.add(reminder(at=START + 10 * MIN, grace_s=1800), START)
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(writer, "write_records", _locked)
@@ -203,7 +203,7 @@ def test_a_torn_journal_line_is_kept_aside_and_reported_and_the_start_goes_on(
     with journal.open("ab") as out:  # the kill -9 came in the middle of the next line
         out.write(b'{"item_id": 1, "outco')
     reports = Reports()
-    second = Agenda(db_url, journal=True, report=reports)
+    second = Agenda.open(db_url, journal=True, report=reports)
     assert second.due(START + 11 * MIN, "ann") == []  # the kept delivery was replayed
     (kept,) = reports.having("unreadable line(s)")
     assert str(journal.with_name(journal.name + ".bad")) in kept
@@ -218,7 +218,7 @@ def test_a_record_the_database_refuses_is_quarantined_and_the_others_land(
     """A batch refused as a whole is written again one record at a time: only the
     refused record is set aside (in the quarantine file, with a report)."""
     reports = Reports()
-    agenda = Agenda(db_url, journal=True, report=reports)
+    agenda = Agenda.open(db_url, journal=True, report=reports)
     kept = agenda.add(reminder(at=START + 10 * MIN, grace_s=1800), START)
     refused = agenda.add(reminder(at=START + 10 * MIN, grace_s=1800, text="Bad"), START)
     real = writer.write_records

@@ -33,7 +33,7 @@ def test_occurrences_are_accounted_for_once(
 ) -> None:
     url = f"sqlite:///{tmp_path / f'example{next(_EXAMPLES)}.db'}"
     lead = int(every * lead_part)
-    agenda = Agenda(url)
+    agenda = Agenda.open(url)
     agenda.add(
         ItemSpec(user_id="ann", kind="reminder", text="x", every=every, lead_s=lead, grace_s=grace),
         START,
@@ -50,7 +50,7 @@ def test_occurrences_are_accounted_for_once(
                     running = False
                 continue
             if not running:
-                agenda = Agenda(url)
+                agenda = Agenda.open(url)
                 agenda.recover(now)
                 running = True
             for item in agenda.due(now, "ann" if block == "present" else None):
@@ -60,7 +60,7 @@ def test_occurrences_are_accounted_for_once(
                 )
                 agenda.delivered(item, now)
     if not running:
-        agenda = Agenda(url)
+        agenda = Agenda.open(url)
     agenda.due(now, None)
     log = agenda.history("ann")
     agenda.close()

@@ -45,7 +45,7 @@ def test_sightings_older_than_any_occurrence_could_need_are_dropped() -> None:
 
 
 def test_a_flood_of_present_ids_changes_no_delivery_and_no_recent_miss(db_url: str) -> None:
-    agenda = Agenda(db_url, unseen_misses=False)
+    agenda = Agenda.open(db_url, unseen_misses=False)
     try:
         at = START + timedelta(hours=1)
         bob = agenda.add(ItemSpec(user_id="bob", kind="reminder", text="Tea", at=at), START)

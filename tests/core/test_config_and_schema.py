@@ -34,6 +34,7 @@ def test_flags_override_the_file(tmp_path: Path) -> None:
     ("text", "fragment"),
     [
         ('robot_id = "Not OK"', "robot_id"),
+        ('robot_id = "mini\\n"', "robot_id"),
         ("[controller]\nfeedback_probability = 2", "controller.feedback_probability"),
         ("[controller]\nunknown = 1", "controller.unknown"),
         ('[inputs]\nstale_after_s = {"perception/nose" = 1.0}', "perception/nose"),

@@ -45,3 +45,11 @@ def test_a_sample_over_the_size_bound_is_dropped_unread(bridge: FoxgloveBridge) 
     bridge.on_sample("robots/mini/dms/state", b"[" * 400 + b"]" * 400)
     assert bridge.too_big == 1 and bridge.forwarded == 0 and bridge.channels() == []
     assert bridge.dropped == 1  # not an object
+
+
+def test_the_outputs_of_a_robot_are_advertised_before_they_speak(bridge: FoxgloveBridge) -> None:
+    bridge.advertise("mini")
+    bridge.advertise("mini")  # once
+    outputs = ["dms/state", "dms/decision", "dms/errors", "dms/behavior", "robot/command"]
+    assert bridge.channels()[-4:] == [f"robots/mini/{key}" for key in outputs[1:]]
+    assert bridge.forwarded == 0

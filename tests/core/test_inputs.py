@@ -101,6 +101,23 @@ def test_a_missing_token_makes_the_input_missing_and_forgets_its_value() -> None
     assert keys.PERCEPTION_USER not in snapshot.values
 
 
+@pytest.mark.parametrize("key", [keys.PARAMS_ROBOT, keys.PARAMS_ENV])
+def test_parameters_nobody_ever_sent_are_not_published_then_missing_once_gone(key: str) -> None:
+    board = InputBoard()
+    assert board.take(0.0).status[key] == "not_published"  # most robots never send them
+    assert board.take(0.0).status[keys.PERCEPTION_USER] == "missing"  # not so a person
+    board.accept(key, ProfileParams(values={"batterylevel": 80}), received=1.0)
+    assert board.take(1.0).status[key] == "ok"
+    board.liveliness(key, False)  # its module went away: now a fault
+    assert board.take(1.1).status[key] == "missing"
+
+
+def test_a_declared_parameters_module_that_has_not_spoken_yet_is_missing() -> None:
+    board = InputBoard()
+    board.liveliness(keys.PARAMS_ROBOT, True)
+    assert board.take(0.0).status[keys.PARAMS_ROBOT] == "missing"
+
+
 def test_events_are_handed_over_once_in_order() -> None:
     board = InputBoard()
     first = Request(action="start", activity="quiz")
@@ -150,3 +167,13 @@ def test_a_params_name_and_value_are_bounded_in_size(key: str) -> None:
     ]:
         with pytest.raises(InputRejected, match=fragment):
             parse_input(key, json.dumps(payload).encode())
+
+
+def test_an_unknown_activity_is_named_with_the_nearest_and_a_long_one_cut() -> None:
+    with pytest.raises(InputRejected) as typo:
+        parse_input(keys.REQUEST, b'{"action": "start", "activity": "jokez"}')
+    assert str(typo.value) == "activity: unknown activity 'jokez'; did you mean jokes?"
+    long = json.dumps({"action": "start", "activity": "jokes" * 2000}).encode()
+    with pytest.raises(InputRejected) as cut:
+        parse_input(keys.REQUEST, long)
+    assert len(str(cut.value)) < 220 and "at most 40 characters" in str(cut.value)

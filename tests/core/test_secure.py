@@ -126,6 +126,7 @@ def test_the_daemons_rules_give_each_role_only_its_keys(tmp_path: Path) -> None:
         "robot": {"robots/mini/robot/feedback", "robots/mini/robot/joints"},
         "app": {"robots/mini/request"},
         "admin": {"robots/mini/request"},
+        "face": {"robots/mini/perception/**"},
     }
     queries = {role: _allowed(conf, role, "ingress", "query") for role in secure.ROLES[1:]}
     assert queries == {
@@ -138,11 +139,17 @@ def test_the_daemons_rules_give_each_role_only_its_keys(tmp_path: Path) -> None:
             "robots/mini/agenda/**",
             "robots/mini/studio/try",
         },
+        "face": set(),
     }
     assert _allowed(conf, "robot", "egress", "put") == {"robots/mini/robot/command"}
     assert _allowed(conf, "app", "egress", "put") == {
         "robots/mini/dms/**",
         "robots/mini/robot/joints",
+    }
+    assert _allowed(conf, "face", "egress", "put") == {
+        "robots/mini/robot/command",
+        "robots/mini/dms/state",
+        "robots/mini/dms/decision",
     }
     assert _allowed(conf, "perception", "ingress", "liveliness_token") == {
         "robots/mini/alive/perception/**",
@@ -188,6 +195,8 @@ def test_init_refuses_to_overwrite_without_force(tmp_path: Path) -> None:
         ("mini", "tls/127.0.0.1:0", "bad endpoint"),
         ("mini", "tls/127.0.0.1:70000", "bad endpoint"),
         ("mini", "tls/127.0.0.1", "bad endpoint"),
+        ("mini\n", secure.DEFAULT_LISTEN, "bad robot id"),
+        ("mini", "tls/127.0.0.1:7447\n", "bad endpoint"),
     ],
 )
 def test_bad_input_is_refused_before_anything_is_written(
@@ -216,7 +225,7 @@ def test_cli_init_lists_the_files_and_refuses_a_second_time(
 ) -> None:
     assert main(["secure", "init", str(tmp_path), "--robot-id", "mini"]) == 0
     out = capsys.readouterr().out.split()
-    assert str(tmp_path / "dms.json5") in out and len(out) == 17
+    assert str(tmp_path / "dms.json5") in out and len(out) == 2 + 3 * len(secure.ROLES)
     assert main(["secure", "init", str(tmp_path), "--robot-id", "mini"]) == 1
     assert "use --force" in capsys.readouterr().err
 

@@ -115,7 +115,7 @@ def test_without_any_spool_writes_wait_in_memory_up_to_the_bound(
     broken = {main}
     monkeypatch.setattr(memory.backlog, "write_spool", full_disk(broken))
     now = [0.0]
-    backlog = Backlog(main, memory_bound=3, clock=lambda: now[0])
+    backlog = Backlog(main, memory_bound=3, clock=lambda: now[0], reserve=0)
     backlog.append([GOOD] * 2, {})
     (in_memory,) = backlog.news()
     assert "kept in memory only" in in_memory and "at most 3" in in_memory
@@ -130,6 +130,29 @@ def test_without_any_spool_writes_wait_in_memory_up_to_the_bound(
     backlog.done(3)
     assert "2 write(s) were dropped" in backlog.news()[-1]
     assert not main.exists()
+
+
+def test_a_full_disk_gives_the_space_kept_for_the_spool_to_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    main, kept = tmp_path / "dms.spool", tmp_path / "dms.spool.reserve"
+    real = memory.backlog.write_spool
+
+    def write_spool(path: Path, entries: Any, binds: dict[str, int]) -> None:
+        if kept.exists():  # the disk is full until the kept space is freed
+            raise OSError(errno.ENOSPC, "No space left on device")
+        real(path, entries, binds)
+
+    monkeypatch.setattr(memory.backlog, "write_spool", write_spool)
+    backlog = Backlog(main, reserve=1 << 20)
+    assert kept.stat().st_blocks * 512 >= 1 << 20  # allocated, not a sparse file
+    backlog.append([GOOD] * 2, {})
+    (given,) = backlog.news()
+    assert "1 MiB kept for it" in given and str(kept) in given
+    assert backlog.on_disk and len(read_spool(main).pending) == 2
+    backlog.done(2)  # nothing waits: the space is kept again for the next outage
+    assert kept.stat().st_size == 1 << 20 and not main.exists()
+    backlog.close()
 
 
 class FlakyStore:

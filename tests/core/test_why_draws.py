@@ -10,7 +10,12 @@ import pytest
 
 from dms.controller.decisions import choice_why
 from dms.kernel.activity_names import ENTERTAINMENT_ACTIVITIES
-from memory.preferences import NOVELTY_PROBABILITY, ActivityChooser, PreferenceModel
+from memory.preferences import (
+    NOVELTY_PROBABILITY,
+    ActivityChooser,
+    ChoiceDraw,
+    PreferenceModel,
+)
 from memory.profile import ActivityScore, Profile
 
 NOW = datetime(2026, 11, 23, 10, 0, tzinfo=UTC)
@@ -50,7 +55,7 @@ def test_keeping_the_draw_leaves_the_random_stream_as_it_was(tried: tuple[str, .
     for seed in range(60):
         exclude = {ENTERTAINMENT_ACTIVITIES[seed % 8]}
         mine, theirs = random.Random(seed), random.Random(seed)
-        assert chooser.choose(profile, mine, exclude) == _reference_choice(
+        assert chooser.choose(profile, mine, exclude).activity == _reference_choice(
             chooser, profile, theirs, exclude
         )
         assert mine.getstate() == theirs.getstate()
@@ -59,8 +64,8 @@ def test_keeping_the_draw_leaves_the_random_stream_as_it_was(tried: tuple[str, .
 def test_a_novelty_pick_is_named_with_its_coin_under_the_threshold() -> None:
     chooser = _chooser()
     seeds = [s for s in range(100) if random.Random(s).random() < NOVELTY_PROBABILITY]
-    pick = chooser.choose(_profile(("bingo", "dance")), random.Random(seeds[0]), {"quiz"})
-    why = choice_why({"quiz"}, chooser.last_draw, chooser=True)
+    draw = chooser.choose(_profile(("bingo", "dance")), random.Random(seeds[0]), {"quiz"})
+    pick, why = draw.activity, choice_why({"quiz"}, draw)
     assert why.by == "novelty" and why.samples is None
     assert why.novelty is not None and why.novelty.draw < why.novelty.probability
     assert why.novelty.probability == NOVELTY_PROBABILITY
@@ -71,8 +76,8 @@ def test_a_novelty_pick_is_named_with_its_coin_under_the_threshold() -> None:
 def test_a_sampled_pick_is_named_with_every_sample_and_the_coin_it_beat() -> None:
     chooser = _chooser()
     seeds = [s for s in range(100) if random.Random(s).random() >= NOVELTY_PROBABILITY]
-    pick = chooser.choose(_profile(("bingo",)), random.Random(seeds[0]), {"quiz"})
-    why = choice_why({"quiz"}, chooser.last_draw, chooser=True)
+    draw = chooser.choose(_profile(("bingo",)), random.Random(seeds[0]), {"quiz"})
+    pick, why = draw.activity, choice_why({"quiz"}, draw)
     assert why.by == "sampling"
     assert why.novelty is not None and why.novelty.draw >= why.novelty.probability
     assert why.samples is not None and set(why.samples) == set(why.candidates)
@@ -81,27 +86,27 @@ def test_a_sampled_pick_is_named_with_every_sample_and_the_coin_it_beat() -> Non
 
 def test_with_every_activity_tried_no_novelty_coin_is_tossed() -> None:
     chooser = _chooser()
-    pick = chooser.choose(_profile(ENTERTAINMENT_ACTIVITIES), random.Random(3))
-    why = choice_why((), chooser.last_draw, chooser=True)
+    draw = chooser.choose(_profile(ENTERTAINMENT_ACTIVITIES), random.Random(3))
+    pick, why = draw.activity, choice_why((), draw)
     assert why.by == "sampling" and why.novelty is None and why.excluded is None
     assert why.samples is not None and why.samples[pick] == max(why.samples.values())
     assert "novelty" not in why.model_dump() and "excluded" not in why.model_dump()
 
 
-def test_every_choice_leaves_a_new_record_of_its_draw() -> None:
+def test_every_choice_returns_its_own_draw_and_keeps_none() -> None:
     chooser, profile = _chooser(), _profile()
     rng = random.Random(1)
-    chooser.choose(profile, rng)
-    first = chooser.last_draw
-    chooser.choose(profile, rng)
-    assert chooser.last_draw is not first
+    first, second = chooser.choose(profile, rng), chooser.choose(profile, rng)
+    assert isinstance(first, ChoiceDraw) and first is not second
+    assert not hasattr(chooser, "last_draw"), "the draw is returned, not left to compare"
 
 
 def test_a_pick_without_the_chooser_is_named_uniform_or_the_other_choosers() -> None:
-    uniform = choice_why({"quiz"}, None, chooser=False)
+    uniform = choice_why({"quiz"}, None)
     assert uniform.by == "random" and uniform.candidates == [
         n for n in ENTERTAINMENT_ACTIVITIES if n != "quiz"
     ]
-    other = choice_why((), None, chooser=True)
+    baseline = ChoiceDraw("bingo", ENTERTAINMENT_ACTIVITIES, (), None, None, explained=False)
+    other = choice_why((), baseline)
     assert other.by == "chooser" and other.candidates == list(ENTERTAINMENT_ACTIVITIES)
     assert other.novelty is None and other.samples is None

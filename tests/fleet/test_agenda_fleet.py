@@ -39,7 +39,7 @@ def reminder(at_minutes: int, **extra: Any) -> ItemSpec:
 
 @contextmanager
 def robots(url: str, count: int = 2, **options: Any) -> Iterator[list[Agenda]]:
-    opened = [Agenda(url, claimer=f"robot{index}", **options) for index in range(count)]
+    opened = [Agenda.open(url, claimer=f"robot{index}", **options) for index in range(count)]
     try:
         yield opened
     finally:
@@ -193,7 +193,7 @@ def test_items_added_elsewhere_reach_a_robot_without_a_restart(fleet_url: str) -
     with robots(fleet_url, count=1, poll_s=10) as (a,):
         a.user_perceived("ann", NOW)
         assert a.due(NOW, "ann") == []
-        cli = Agenda(fleet_url)
+        cli = Agenda.open(fleet_url)
         item = cli.add(reminder(1), NOW)
         cli.close()
         assert a.due(NOW + 5 * timedelta(seconds=1), "ann") == []  # not polled yet

@@ -57,7 +57,7 @@ def test_dms_db_upgrade_brings_an_old_database_to_the_fleet(fleet_url: str) -> N
     assert result.exit_code == 0, result.output
     assert f"memory_0003 -> {migrations.head()}" in result.output
     robots = [ProfileStore(fleet_url), ProfileStore(fleet_url)]
-    agendas = [Agenda(fleet_url, claimer=f"robot{index}") for index in range(2)]
+    agendas = [Agenda.open(fleet_url, claimer=f"robot{index}") for index in range(2)]
     try:
         before = robots[0].get("ann")
         assert (before.name, before.version, before.scores["quiz"].completions) == ("Ann", 0, 2)

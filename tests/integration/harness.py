@@ -6,6 +6,7 @@ or a liveliness token, with a deadline; nothing sleeps and hopes.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -17,7 +18,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, ClassVar, TypeVar
 
 import zenoh
 
@@ -46,12 +47,31 @@ def client_session(port: int) -> zenoh.Session:
 
 
 class Collector:
-    """Keeps every JSON message on one key expression; waits for one that matches."""
+    """Keeps every JSON message on one key expression; waits for one that matches.
+
+    It subscribes for the test that makes it: tests/integration/conftest.py closes every
+    collector after its test (on a session a module shares, the subscriber and the
+    thread Zenoh runs its handler in would otherwise stay for the next tests).
+    """
+
+    _open: ClassVar[list[Collector]] = []
 
     def __init__(self, session: zenoh.Session, key_expr: str) -> None:
         self.messages: list[dict[str, Any]] = []
         self._cond = threading.Condition()
         self._sub = session.declare_subscriber(key_expr, self._on)
+        Collector._open.append(self)
+
+    def close(self) -> None:
+        """Undeclare the subscriber (nothing to do when its session is closed already)."""
+        with contextlib.suppress(zenoh.ZError):
+            self._sub.undeclare()  # type: ignore[no-untyped-call]
+
+    @classmethod
+    def close_all(cls) -> None:
+        """Close the collectors made since the last call."""
+        while cls._open:
+            cls._open.pop().close()
 
     def _on(self, sample: zenoh.Sample) -> None:
         with self._cond:

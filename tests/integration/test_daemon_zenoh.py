@@ -47,6 +47,8 @@ def test_state_at_2hz_and_contract_shape(tmp_path: Path) -> None:
         assert state["robot"] == "mini" and state["mode"] == "motivation"
         assert set(state["motivation"]) == {"dominant", "drives", "motivations", "wellbeing"}
         assert state["activity"]["manager"] == "relax"
+        # a healthy default run: parameters nobody sends are no fault
+        assert state["inputs"]["params/robot"] == state["inputs"]["params/env"] == "not_published"
         replies = query(session, "dms/state")
         assert replies and replies[0][0] and replies[0][1]["robot"] == "mini"
 

@@ -124,10 +124,11 @@ async def _session(port: int, daemon_session: Any) -> FoxgloveClient:
         await client.until(lambda: state in client.channels)
         await client.subscribe(state)
         await client.until(lambda: len(client.seen.get(state, [])) >= 2)
-        # The decisions' channel is advertised when the first decision is published.
-        put(daemon_session, "request", {"action": "start", "activity": "jokes", "by": "app"})
-        await client.until(lambda: decision in client.channels)
+        # Every output is advertised at start: the decisions' channel is there to
+        # subscribe to before the bridge has forwarded any decision.
+        assert decision in client.channels and "/robots/mini/robot/command" in client.channels
         await client.subscribe(decision)
+        put(daemon_session, "request", {"action": "start", "activity": "jokes", "by": "app"})
         # Two states the daemon published well after the subscription was sent show that
         # the server has taken it (it handles a client's messages at once).
         sent = time.time() + 0.5

@@ -127,6 +127,20 @@ def test_echo_takes_a_key_with_or_without_slash_absolute_or_relative(
     assert line["key"] == "robots/mini/dms/state" and line["payload"]["robot"] == "mini"
 
 
+def test_echo_of_a_mistyped_key_says_nobody_publishes_it_and_names_the_nearest(
+    daemon: tuple[DaemonProcess, zenoh.Session],
+) -> None:
+    process, _ = daemon
+    typo = dms("echo", "dms/decison", "--timeout", "6", *_connect(process))
+    assert typo.returncode == 1
+    assert (
+        "dms: nothing on robots/mini/dms/decison after 3 s, and it is no key the daemon uses: "
+        "did you mean dms/decision?"
+    ) in typo.stderr.splitlines(), typo.stderr
+    quiet = dms("echo", "robot/feedback", "--timeout", "4", *_connect(process))  # known, quiet
+    assert quiet.returncode == 1 and "did you mean" not in quiet.stderr, quiet.stderr
+
+
 def test_topics_takes_a_key_too(daemon: tuple[DaemonProcess, zenoh.Session]) -> None:
     process, _ = daemon
     done = dms("topics", "/dms/*", "--json", "--duration", "1.5", *_connect(process))

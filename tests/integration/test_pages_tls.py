@@ -166,9 +166,30 @@ def test_the_viewer_serves_its_snapshot_over_https(certs: Path, tmp_path: Path) 
     tls = ["--tls-cert", str(certs / "app.pem"), "--tls-key", str(certs / "app.key")]
     args = ["view", "--zenoh-config", str(isolated_zenoh(tmp_path)), "--port", "0", *tls]
     with page_server(args, "viewer", HTTPS_URL) as (url, _proc):
-        status, snapshot = https_get(url, "/api/snapshot", client_context(certs))
+        context = client_context(certs)
+        status, text = https_get(url, "/api/snapshot", context)
+        assert status == 403 and "dms view" in text, text
+        token = urlsplit(url).query.removeprefix("token=")
+        status, snapshot = https_get(url, "/api/snapshot", context, {"X-Viewer-Token": token})
         assert status == 200 and "robots" in snapshot, snapshot
+        assert https_cookie(url, f"/?token={token}", context).endswith("; Secure")
         assert plain_http_fails(url)
+
+
+def https_cookie(url: str, path: str, context: ssl.SSLContext) -> str:
+    """The cookie a page over HTTPS sets on a visit to ``path``."""
+    parts = urlsplit(url)
+    connection = http.client.HTTPSConnection(
+        str(parts.hostname), parts.port, timeout=30, context=context
+    )
+    try:
+        connection.request("GET", path)
+        response = connection.getresponse()
+        response.read()
+        assert response.status == 200, response.status
+        return str(response.headers["Set-Cookie"])
+    finally:
+        connection.close()
 
 
 @pytest.mark.integration

@@ -357,7 +357,7 @@ def test_diagnostics_name_each_inputs_health(sim_setup: Any) -> None:
     )
     named = levels(array)
     assert named["dms mini: daemon"][0] == 0
-    assert named["dms mini: input params/robot"] == (2, "missing")  # nobody sends it
+    assert named["dms mini: input params/robot"] == (0, "not_published")  # nobody sends it
     assert named["dms mini: robot link"] == (0, "ok")
     assert named["dms mini: storage"] == (0, "ok")
 

@@ -194,14 +194,15 @@ def test_a_peer_without_a_certificate_cannot_connect(deployment: Deployment) -> 
         perception = deployment.session("perception")
         states = Collector(deployment.session("app"), f"{ROBOT}/dms/state")
         # Each stranger sets the robot's parameters; then perception, with its certificate,
-        # sets the environment's. Neither was set before (both "missing").
+        # sets the environment's. Neither was set before (both "not_published").
         for stranger in strangers:
             _put(stranger, "params/robot", {"batterylevel": 5})
             assert _get(stranger, "dms/state", timeout=1.0) == []
         _put(perception, "params/env", {"noise_db": 40})
         seen = states.wait_for(lambda s: s["inputs"].get("params/env") == "ok")
         states.wait_for(lambda s: s["tick"] > seen["tick"])  # one more tick for margin
-        assert not [s for s in states.messages if s["inputs"].get("params/robot") != "missing"]
+        robot_params = [s["inputs"].get("params/robot") for s in states.messages]
+        assert set(robot_params) == {"not_published"}
         for stranger in strangers:
             assert list(stranger.info.peers_zid()) == []
         assert list(perception.info.peers_zid()) != []

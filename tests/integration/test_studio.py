@@ -9,6 +9,7 @@ The page itself is driven in Chromium by test_studio_page.py.
 
 from __future__ import annotations
 
+import hashlib
 import http.client
 import json
 import shutil
@@ -98,6 +99,13 @@ def test_a_foreign_host_a_missing_token_and_a_foreign_origin_are_refused(studio:
     assert status == 403
     status, _ = studio.request("GET", f"/?token={studio.token}", token=False)
     assert status == 200
+    # the cookie that visit set opens the page and its API without the token in the URL
+    # (the viewer's link to the studio works once the studio's URL was opened)
+    jar = {"Cookie": f"dms-studio-{studio.port}={studio.token}"}
+    assert studio.request("GET", "/", headers=jar, token=False)[0] == 200
+    assert studio.request("GET", "/api/behaviors", headers=jar, token=False)[0] == 200
+    wrong = {"Cookie": f"dms-viewer-{studio.port}={studio.token}"}
+    assert studio.request("GET", "/api/behaviors", headers=wrong, token=False)[0] == 403
     doc = {"name": "quiz", "outcomes": ["done"], "states": {}}
     origin = {"Origin": "http://evil.example"}
     status, text = studio.request("POST", "/api/save", {"doc": doc, "hash": None}, headers=origin)
@@ -189,3 +197,129 @@ def test_a_trial_steps_through_a_behavior_on_the_simulated_mini(studio: Studio) 
     assert step["userdata"] == {"greeted": 1}, step
     status, pose = studio.request("GET", "/api/robot")
     assert status == 200 and set(pose["joints"]) >= {"head", "neck", "hip"}
+
+
+@pytest.mark.integration
+def test_placements_are_kept_beside_the_file_and_bad_ones_are_refused(studio: Studio) -> None:
+    path = studio.folder / "wait.yaml"
+    before = path.read_bytes()
+    _, opened = studio.request("GET", "/api/behaviors/wait")
+    assert opened["layout"] == {"positions": {}} and opened["layout_note"] is None
+    first = next(iter(opened["doc"]["states"]))
+    for layout, wrong in [
+        ({"positions": {first: [1, "far"]}}, f"{first!r}: [x, y], two finite numbers"),
+        ({"positions": {first: [1e9, 0]}}, "two finite numbers"),
+        ({"positions": []}, '{"positions": {"STATE/PATH": [x, y], ...}}'),
+        ({"positions": {"": [0, 0]}}, "a state path of 1 to 400 characters"),
+    ]:
+        status, refused = studio.request(
+            "POST", "/api/save", {"doc": opened["doc"], "hash": opened["hash"], "layout": layout}
+        )
+        assert status == 400 and wrong in refused["error"], refused
+    assert not (studio.folder / "wait.layout.json").exists()
+    layout = {"positions": {first: [120, -40.5]}}
+    status, saved = studio.request(
+        "POST", "/api/save", {"doc": opened["doc"], "hash": opened["hash"], "layout": layout}
+    )
+    assert status == 200 and saved["kind"] == "saved", saved
+    assert path.read_bytes() == before
+    _, again = studio.request("GET", "/api/behaviors/wait")
+    assert again["layout"] == {"positions": {first: [120, -40.5]}}
+    # a sidecar spoilt by hand is ignored, with its reason: the states are laid out anew
+    (studio.folder / "wait.layout.json").write_text("{not json")
+    status, spoilt = studio.request("GET", "/api/behaviors/wait")
+    assert status == 200 and spoilt["layout"] == {"positions": {}}
+    assert spoilt["layout_note"].startswith("wait.layout.json is not readable JSON")
+
+
+@pytest.mark.integration
+def test_the_simulated_mini_is_posed_by_hand_within_its_limits(studio: Studio) -> None:
+    status, body = studio.request("GET", "/api/body")
+    assert status == 200 and body["joints"]["head"] == {"low": -0.45, "high": 0.45, "neutral": 0}
+    status, posed = studio.request("POST", "/api/robot/pose", {"joints": {"head": 2, "neck": 0.5}})
+    assert status == 200 and posed["joints"]["head"] == 0.45 and posed["joints"]["neck"] == 0.5
+    status, now = studio.request("GET", "/api/robot")
+    assert status == 200 and now["joints"] == posed["joints"]
+    for joints, wrong in [
+        ({"tail": 1}, "no joint 'tail'"),
+        ({"head": True}, "head: radians, a number"),
+        ({"head": float("nan")}, "head: a finite number of radians"),
+        ({}, "joints: {name: radians}"),
+        ("up", "joints: {name: radians}"),
+    ]:
+        status, refused = studio.request("POST", "/api/robot/pose", {"joints": joints})
+        assert status == 400 and wrong in refused["error"], refused
+    status, compared = studio.request("POST", "/api/compare", {"doc": {"name": "Bad Name"}})
+    assert status == 400 and "name" in compared["error"], compared
+    (studio.folder / "broken.yaml").write_text("name: broken\nstates: [a, {b: \n  - c\n")
+    status, compared = studio.request("POST", "/api/compare", {"doc": {"name": "broken"}})
+    assert status == 422 and "broken.yaml: not readable YAML on disk" in compared["error"]
+    assert "\n" not in compared["error"], compared
+    broken = (studio.folder / "broken.yaml").read_bytes()
+    doc = {"name": "broken", "outcomes": ["done"], "states": {"A": {"wait": {}}}}
+    digest = hashlib.sha256(broken).hexdigest()
+    status, refused = studio.request("POST", "/api/save", {"doc": doc, "hash": digest})
+    assert status == 422 and "not readable YAML on disk" in refused["error"], refused
+    assert (studio.folder / "broken.yaml").read_bytes() == broken
+
+
+@pytest.mark.integration
+def test_a_task_frame_stays_where_its_marker_was_last_seen_in_a_trial(studio: Studio) -> None:
+    doc = {
+        "name": "handle",
+        "outcomes": ["done", "lost"],
+        "frames": {"handle": {"of": "object:tag", "xyz": [0.0, 0.1, 0.2]}},
+        "states": {
+            "FIRST": {"look_at": {"frame": "handle"}, "transitions": {"done": "HOLD"}},
+            "HOLD": {"wait": {"seconds": 2}, "transitions": {"done": "AGAIN"}},
+            "AGAIN": {"point_at": {"frame": "handle"}},
+        },
+    }
+    status, frames = studio.request("GET", "/api/frames")
+    assert status == 200 and "object:tag" in frames["frames"]
+    status, step = studio.request("POST", "/api/try/start", {"doc": doc})
+    assert status == 200 and step["path"] == "FIRST", step
+    (first,) = [c["args"] for c in step["commands"] if c["channel"] == "aim"]
+    assert first["live"] is True and first["position"] == {"x": 0.5, "y": -0.1, "z": 0.2}
+    status, hidden = studio.request("POST", "/api/try/marker", {"seen": False})
+    assert status == 200 and hidden == {"seen": False}
+    aims = []
+    for _ in range(10):
+        status, step = studio.request("POST", "/api/try/step")
+        assert status == 200, step
+        aims += [c["args"] for c in step["commands"] if c["channel"] == "aim"]
+        if step["finished"]:
+            break
+    assert step["outcome"] == "done", step
+    (again,) = aims
+    assert again["live"] is False and again["position"] == first["position"]
+    status, refused = studio.request("POST", "/api/try/marker", {"seen": "no"})
+    assert status == 400 and "seen: true" in refused["error"]
+
+
+@pytest.mark.integration
+def test_a_name_with_a_line_break_or_too_long_is_a_one_line_400(studio: Studio) -> None:
+    before = sorted(path.name for path in studio.folder.iterdir())
+    tail = {"outcomes": ["done"], "states": {"HI": {"speak": {"text": "hi"}}}}
+    for name in ("evil\n", "evil\r\n", "evil\nx", "x" * 5000, "", "Quiz"):
+        status, refused = studio.request("POST", "/api/save", {"doc": {"name": name, **tail}})
+        assert status == 400, (name[:10], refused)
+        assert "name" in refused["error"] and "\n" not in refused["error"], refused
+        assert len(refused["error"]) < 300, refused
+    for path in ("evil%0A", "evil%0D%0A", "a" * 5000, "quiz%0A"):
+        status, refused = studio.request("GET", f"/api/behaviors/{path}")
+        assert status == 400, (path[:10], refused)
+        assert "\n" not in refused["error"], refused
+    status, text = studio.request("POST", "/api/try/start", {"doc": tail, "seed": "abc"})
+    assert status == 400 and "seed" in text["error"], text
+    assert sorted(path.name for path in studio.folder.iterdir()) == before
+    status, names = studio.request("GET", "/api/behaviors")
+    assert status == 200 and all("\n" not in name for name in names["names"])
+
+
+@pytest.mark.integration
+def test_a_behavior_that_is_not_yaml_is_refused_in_one_line(studio: Studio) -> None:
+    (studio.folder / "broken.yaml").write_text("name: broken\nstates: [a, {b: \n  - c\n")
+    status, refused = studio.request("GET", "/api/behaviors/broken")
+    assert status == 422 and "not readable YAML" in refused["error"], refused
+    assert "\n" not in refused["error"], refused

@@ -9,6 +9,7 @@ shipped behavior opened and saved unchanged, byte for byte. Saves docs/studio.pn
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -78,8 +79,9 @@ def drag(page: Any, source: str, target: str) -> None:
     page.mouse.up()
 
 
-def message_at(page: Any, param: str, severity: str) -> str:
-    found = page.locator(f'#props .field[data-param="{param}"] .msg.{severity}')
+def message_at(page: Any, param: str, severity: str, saying: str = "") -> str:
+    """The first ``severity`` message at the field of ``param`` that says ``saying``."""
+    found = page.locator(f'#props .field[data-param="{param}"] .msg.{severity}', has_text=saying)
     found.first.wait_for()
     return str(found.first.inner_text())
 
@@ -90,8 +92,13 @@ def test_a_behavior_built_with_clicks_and_typing_is_saved_and_loads(
     ready(page, studio.url)
     page.fill("#param-name", "greeting")
     page.click('#palette button[data-block="speak"]')
+    page.fill("#param-text", "Hello {user.nmae|there}!")
+    said = message_at(page, "text", "error", "{user.nmae}")
+    assert said.endswith("user has no field 'nmae'; did you mean {user.name}?"), said
+    page.fill("#param-text", "")
+    assert "missing parameter 'text'" in message_at(page, "text", "error", "missing")
     page.fill("#param-text", "Hello {user.name|there}! I remember {answr}.")
-    assert "'answr'" in message_at(page, "text", "warning")
+    assert "answr is no userdata key" in message_at(page, "text", "error", "{answr}")
     page.fill("#param-text", "Hello {user.name|there}!")
     page.click('#palette button[data-block="ask"]')
     page.fill("#param-question", "Shall we listen to some music?")
@@ -101,10 +108,8 @@ def test_a_behavior_built_with_clicks_and_typing_is_saved_and_loads(
     assert "timeout_s" in message_at(page, "timeout_s", "error")
     page.fill("#param-timeout_s", "10")
     page.wait_for_selector('.port[data-path="ASK"][data-port="yes"]')
-    drag(
-        page, '.port[data-path="SPEAK"][data-port="done"] circle', '.state[data-path="ASK"] > rect'
-    )
-    drag(page, '.port[data-path="ASK"][data-port="yes"] circle', '.terminal[data-end="done"] rect')
+    drag(page, '.port[data-path="SPEAK"][data-port="done"] .hit', '.state[data-path="ASK"] > rect')
+    drag(page, '.port[data-path="ASK"][data-port="yes"] .hit', '.terminal[data-end="done"] rect')
     page.click('.state[data-path="ASK"] > rect')
     page.select_option('select[data-outcome="no"]', "done")
     page.select_option('select[data-outcome="no_answer"]', "done")
@@ -152,3 +157,97 @@ def test_a_shipped_behavior_opened_and_saved_unchanged_is_byte_identical(
     page.wait_for_selector(".state.lit")
     page.screenshot(path=str(SCREENSHOT))
     page.click("#stop-button")
+
+
+def slide(page: Any, joint: str, fraction: float) -> None:
+    """Drag the slider of ``joint`` with the mouse to ``fraction`` of its track."""
+    box = page.locator(f"#joint-{joint}").bounding_box()
+    y = box["y"] + box["height"] / 2
+    page.mouse.move(box["x"] + box["width"] / 2, y)
+    page.mouse.down()
+    page.mouse.move(box["x"] + box["width"] * fraction, y, steps=8)
+    page.mouse.up()
+
+
+def posed(page: Any, joint: str, test: str) -> dict[str, float]:
+    """The simulated Mini's joints once ``joint`` satisfies ``test`` (a JS comparison) and
+    the studio has what its slider shows."""
+    page.wait_for_function(
+        f"(() => {{ const p = JSON.parse(document.body.dataset.posed || '{{}}');"
+        f" const shown = Number(document.getElementById('joint-{joint}').value);"
+        f" return p.{joint} === shown && p.{joint} {test}; }})()"
+    )
+    return dict(json.loads(page.get_attribute("body", "data-posed")))
+
+
+def test_a_pose_set_by_the_sliders_is_recorded_timed_and_played_back(
+    studio: Studio, page: Any
+) -> None:
+    ready(page, studio.url)
+    page.fill("#param-name", "wave_hello")
+    page.click('#palette button[data-block="pose"]')
+    page.wait_for_selector("#play-pose")
+    slide(page, "neck", 0.85)
+    slide(page, "left_arm", 0.7)
+    posed(page, "neck", "> 0.4")
+    first = posed(page, "left_arm", "> 1.2")
+    page.click("#record-button")
+    row = page.locator('tr[data-keyframe="0"]')
+    row.wait_for()
+    assert float(row.locator('input[data-joint="neck"]').input_value()) == first["neck"]
+    assert float(row.locator('input[data-joint="left_arm"]').input_value()) == first["left_arm"]
+    page.fill('input[data-seconds="0"]', "1.5")
+    page.keyboard.press("Tab")
+    slide(page, "neck", 0.2)
+    second = posed(page, "neck", "< -0.3")
+    page.click("#record-button")
+    page.locator('tr[data-keyframe="1"]').wait_for()
+    page.wait_for_selector("#status.good")
+
+    page.click("#play-pose")
+    page.wait_for_function("document.getElementById('trial-state').textContent.includes('ended')")
+    assert "ended: done" in page.inner_text("#trial-state")
+    played = json.loads(page.get_attribute("#robot", "data-joints"))
+    assert played == pytest.approx(second, abs=0.01)
+    sent = page.locator("#log li", has_text="motion.pose").all_inner_texts()
+    assert len(sent) == 2 and '"duration_s":1.5' in sent[0], sent
+    page.screenshot(path=str(studio.folder.parent / "posed.png"))
+
+    page.click("#save-button")
+    page.wait_for_selector("body[data-saved='saved']")
+    saved = studio.folder / "wave_hello.yaml"
+    checked = subprocess.run(
+        [sys.executable, "-m", "dms.cli", "behavior", "check", str(saved)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert checked.returncode == 0, checked.stdout + checked.stderr
+    assert "seconds: [1.5]" in saved.read_text(), saved.read_text()
+
+
+def test_a_task_frame_is_declared_in_a_form_and_aimed_at_by_name(studio: Studio, page: Any) -> None:
+    ready(page, studio.url)
+    page.fill("#param-name", "fetch_cup")
+    for label, value in [("name", "handle"), ("of", "object:tag7"), ("xyz[2] (m)", "0.1")]:
+        page.fill(f'[aria-label="task frame 1 {label}"]', value)
+        page.keyboard.press("Tab")
+    page.wait_for_selector('#frames option[value="handle"]', state="attached")
+    page.click('#palette button[data-block="look_at"]')
+    page.fill("#param-frame", "handel")
+    said = message_at(page, "frame", "error", "handel")
+    assert said.endswith("no task frame 'handel'; did you mean 'handle'?"), said
+    page.fill("#param-frame", "handle")
+    page.select_option('select[data-outcome="lost"]', "done")
+    page.wait_for_selector("#status.good")
+    page.click("#save-button")
+    page.wait_for_selector("body[data-saved='saved']")
+    saved = studio.folder / "fetch_cup.yaml"
+    assert "handle: {of: object:tag7, xyz: [0, 0, 0.1]}" in saved.read_text(), saved.read_text()
+    checked = subprocess.run(
+        [sys.executable, "-m", "dms.cli", "behavior", "check", str(saved)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert checked.returncode == 0, checked.stdout + checked.stderr

@@ -13,6 +13,7 @@ import re
 import subprocess
 import sys
 import threading
+import urllib.parse
 import urllib.request
 from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
@@ -36,6 +37,7 @@ from tests.integration.viewer_harness import (
     CHROMIUM,
     CHROMIUM_ARGS,
     EventStream,
+    at,
     browser_missing,
     running_viewer,
 )
@@ -83,7 +85,7 @@ def test_the_viewer_streams_state_structure_and_decisions(tmp_path: Path) -> Non
         page = urllib.request.urlopen(url, timeout=10).read().decode()
         assert "static/uPlot.iife.min.js" in page and "static/viewer.js" in page
         for asset in ("uPlot.iife.min.js", "uPlot.min.css", "viewer.js", "viewer.css"):
-            with urllib.request.urlopen(f"{url}static/{asset}", timeout=10) as response:
+            with urllib.request.urlopen(at(url, f"static/{asset}"), timeout=10) as response:
                 assert response.status == 200 and response.read()
 
         lingering = EventStream(url)  # a page still open when the viewer stops
@@ -116,7 +118,7 @@ def test_the_viewer_streams_state_structure_and_decisions(tmp_path: Path) -> Non
         finally:
             stream.close()
 
-        with urllib.request.urlopen(url + "api/snapshot", timeout=10) as response:
+        with urllib.request.urlopen(at(url, "api/snapshot"), timeout=10) as response:
             mini = json.loads(response.read())["robots"]["mini"]
     lingering.close()
     assert mini["alive"] and _activity(mini["state"]) == "quiz"
@@ -317,7 +319,7 @@ def test_the_viewer_refuses_bad_input_in_one_line(tmp_path: Path) -> None:
 @pytest.mark.integration
 def test_a_port_in_use_is_one_line(tmp_path: Path) -> None:
     with running_daemon(tmp_path) as (daemon, _session), running_viewer(daemon.port) as url:
-        port = url.rsplit(":", 1)[1].strip("/")
+        port = str(urllib.parse.urlsplit(url).port)
         done = subprocess.run(
             [
                 sys.executable,
@@ -382,7 +384,7 @@ def test_one_viewer_watches_several_daemons_or_the_ones_named(tmp_path: Path) ->
                 assert daemons[0].terminate() == 0
                 gone = stream.wait_for("robot", lambda r: r["robot"] == "hall")
                 assert not gone["alive"]
-                with urllib.request.urlopen(url + "api/snapshot", timeout=10) as response:
+                with urllib.request.urlopen(at(url, "api/snapshot"), timeout=10) as response:
                     assert json.loads(response.read())["robots"]["garden"]["alive"]
             finally:
                 stream.close()
@@ -399,7 +401,7 @@ def test_one_viewer_watches_several_daemons_or_the_ones_named(tmp_path: Path) ->
         )
         with running_viewer(None, "--zenoh-config", str(garden), "--robot", "garden") as url:
             _wait_alive(url, {"garden"})
-            with urllib.request.urlopen(url + "api/snapshot", timeout=10) as response:
+            with urllib.request.urlopen(at(url, "api/snapshot"), timeout=10) as response:
                 assert list(json.loads(response.read())["robots"]) == ["garden"]
     finally:
         for daemon in daemons:

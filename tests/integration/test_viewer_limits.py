@@ -25,7 +25,12 @@ from dms.viewer.bounds import DECISIONS_BUDGET_CHARS, MAX_MESSAGE_CHARS, MAX_REA
 from dms.viewer.guard import HostGuard, allowed_hosts
 from dms.viewer.model import LiveModel
 from tests.integration.harness import free_port, put
-from tests.integration.viewer_harness import EventStream, running_viewer, viewer_process
+from tests.integration.viewer_harness import (
+    EventStream,
+    running_viewer,
+    token_of,
+    viewer_process,
+)
 
 
 @contextmanager
@@ -80,17 +85,43 @@ def _heard(session: zenoh.Session, stream: EventStream, robot: str) -> None:
 
 
 def _request(
-    url: str, path: str, host: str | None = None, method: str = "GET", origin: str | None = None
+    url: str,
+    path: str,
+    host: str | None = None,
+    method: str = "GET",
+    origin: str | None = None,
+    token: bool = True,
 ) -> int:
-    """The status of one request to the viewer, with the ``Host`` and ``Origin`` given."""
+    """The status of one request to the viewer, with the ``Host`` and ``Origin`` given,
+    and its token in the header unless ``token`` is False."""
+    return _response(url, path, host, method, origin, token)[0]
+
+
+def _response(
+    url: str,
+    path: str,
+    host: str | None = None,
+    method: str = "GET",
+    origin: str | None = None,
+    token: bool = True,
+    headers: dict[str, str] | None = None,
+) -> tuple[int, str, http.client.HTTPMessage]:
+    """The status, the first 4 KB of the body and the headers of one request."""
     where = urllib.parse.urlsplit(url)
     conn = http.client.HTTPConnection(where.hostname or "", where.port, timeout=10)
-    headers = {"Host": host} if host is not None else {}
+    sent = dict(headers or {})
+    if host is not None:
+        sent["Host"] = host
     if origin is not None:
-        headers["Origin"] = origin
+        sent["Origin"] = origin
+    if token:
+        sent["X-Viewer-Token"] = token_of(url)
     try:
-        conn.request(method, path, headers=headers)
-        return conn.getresponse().status
+        conn.request(method, path, headers=sent)
+        response = conn.getresponse()
+        streamed = response.headers.get("Content-Type", "").startswith("text/event-stream")
+        body = response.read1(4096) if streamed else response.read(4096)  # a stream never ends
+        return response.status, body.decode(errors="replace"), response.headers
     finally:
         conn.close()
 
@@ -99,7 +130,7 @@ def _snapshot(url: str) -> dict[str, Any]:
     where = urllib.parse.urlsplit(url)
     conn = http.client.HTTPConnection(where.hostname or "", where.port, timeout=10)
     try:
-        conn.request("GET", "/api/snapshot")
+        conn.request("GET", "/api/snapshot", headers={"X-Viewer-Token": token_of(url)})
         return dict(json.loads(conn.getresponse().read()))
     finally:
         conn.close()
@@ -130,6 +161,45 @@ def test_a_foreign_host_or_a_foreign_origin_is_refused() -> None:
         own = f"http://127.0.0.1:{port}"
         assert _request(url, "/api/snapshot", method="POST", origin=own) == 405  # let through
         assert _request(url, "/api/snapshot", origin=foreign) == 200  # a read: the browser's
+
+
+@pytest.mark.integration
+def test_without_its_token_the_viewer_serves_only_its_static_files() -> None:
+    with (
+        bus_peer() as (_session, bus),
+        running_viewer(bus, "--allow-host", "robot.example") as url,
+    ):
+        port = urllib.parse.urlsplit(url).port
+        token = token_of(url)
+        hosts = (f"127.0.0.1:{port}", f"localhost:{port}", f"robot.example:{port}")
+        for host in hosts:
+            for path in ("/", "/api/snapshot", "/events"):
+                status, text, _ = _response(url, path, host=host, token=False)
+                assert status == 403, (host, path, text)
+                assert text.count("\n") == 1 and "dms view" in text and "token" in text, text
+            assert _request(url, "/static/viewer.js", host=host, token=False) == 200
+            assert _request(url, "/api/snapshot", host=host) == 200, host
+        wrong = {"X-Viewer-Token": "x" + token[1:], "Cookie": f"dms-viewer-{port}=nope"}
+        for name, value in wrong.items():
+            status, _, _ = _response(url, "/api/snapshot", token=False, headers={name: value})
+            assert status == 403, name
+        # another page's token (the studio's cookie, another viewer's port) is not this one's
+        other = {"Cookie": f"dms-studio-{port}={token}; dms-viewer-{port + 1}={token}"}
+        assert _response(url, "/api/snapshot", token=False, headers=other)[0] == 403
+        assert _response(url, f"/api/snapshot?token={token[:-1]}", token=False)[0] == 403
+
+        status, page, headers = _response(url, f"/?token={token}", token=False)
+        assert status == 200 and "viewer.js" in page
+        cookie = headers["Set-Cookie"]
+        assert cookie.startswith(f"dms-viewer-{port}={token};"), cookie
+        assert "HttpOnly" in cookie and "SameSite=Strict" in cookie and "Path=/" in cookie
+        jar = {"Cookie": cookie.split(";", 1)[0]}
+        status, text, _ = _response(url, "/api/snapshot", token=False, headers=jar)
+        assert status == 200 and '"robots":' in text, text[:80]
+        status, text, _ = _response(url, "/events", token=False, headers=jar)
+        assert status == 200 and text.startswith("retry: 1000\nevent: snapshot"), text[:80]
+        status, _, headers = _response(url, "/api/snapshot", token=True)
+        assert status == 200 and "Set-Cookie" not in headers  # only the URL's visit sets it
 
 
 def test_the_guard_on_every_interface_takes_an_address_but_no_other_name() -> None:

@@ -11,6 +11,7 @@ import signal
 import subprocess
 import sys
 import threading
+import urllib.parse
 import urllib.request
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -36,11 +37,20 @@ def running_viewer(port: int | None, *extra: str) -> Iterator[str]:
 def viewer_process(port: int | None, *extra: str) -> Iterator[tuple[str, subprocess.Popen[str]]]:
     """:func:`running_viewer`, yielding its process too (to measure it)."""
     connect = ["--connect", f"tcp/127.0.0.1:{port}"] if port is not None else []
-    with page_server(["view", *connect, "--port", "0", *extra], "viewer", r"http://\S+/") as (
-        url,
-        proc,
-    ):
+    with page_server(["view", *connect, "--port", "0", *extra], "viewer") as (url, proc):
         yield url, proc
+
+
+def at(url: str, path: str) -> str:
+    """``path`` (``events``, ``api/snapshot``) of the page printed as ``url``
+    (``http://HOST:PORT/?token=...``), carrying its token as a script would."""
+    parts = urllib.parse.urlsplit(url)
+    return urllib.parse.urlunsplit((parts.scheme, parts.netloc, f"/{path}", parts.query, ""))
+
+
+def token_of(url: str) -> str:
+    """The token a page's printed URL carries."""
+    return urllib.parse.parse_qs(urllib.parse.urlsplit(url).query)["token"][0]
 
 
 @contextmanager
@@ -96,12 +106,13 @@ def _served_url(
 
 
 class EventStream:
-    """The viewer's ``/events`` read as server-sent events, in a thread; every event kept."""
+    """The viewer's ``/events`` read as server-sent events, in a thread; every event kept.
+    ``url``: the page's, with its token."""
 
     def __init__(self, url: str) -> None:
         self.events: list[tuple[str, Any]] = []
         self._cond = threading.Condition()
-        self._response = urllib.request.urlopen(url + "events", timeout=READY_TIMEOUT_S)
+        self._response = urllib.request.urlopen(at(url, "events"), timeout=READY_TIMEOUT_S)
         threading.Thread(target=self._read, daemon=True).start()
 
     def _read(self) -> None:

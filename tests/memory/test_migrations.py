@@ -132,7 +132,7 @@ def test_upgrade_keeps_every_row_of_the_previous_schema(db_url: str) -> None:
 def test_a_new_database_is_created_at_head_beside_the_agenda(db_url: str) -> None:
     from agenda import Agenda
 
-    Agenda(db_url).close()
+    Agenda.open(db_url).close()
     store = ProfileStore(db_url)
     try:
         with store.engine.connect() as connection:

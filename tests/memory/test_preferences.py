@@ -104,7 +104,7 @@ def test_the_chooser_learns_a_users_taste_from_feedback(store: ProfileStore) -> 
     now = NOW
     picks: list[str] = []
     for _ in range(60):
-        name = chooser.choose(profile, rng)
+        name = chooser.choose(profile, rng).activity
         picks.append(name)
         now += timedelta(minutes=5)
         profile = store.record_feedback("ann", name, persona.liking[name], now)
@@ -124,11 +124,13 @@ def test_cancellations_push_an_activity_down_and_exclude_is_respected(store: Pro
         store.record_activity("ann", "quiz", NOW, NOW, "cancelled", "robot", True)
     profile = store.get("ann")
     rng = random.Random(2)
-    picks = Counter(chooser.choose(profile, rng) for _ in range(200))
+    picks = Counter(chooser.choose(profile, rng).activity for _ in range(200))
     assert picks["quiz"] < 5
     assert chooser.ranking(profile, rng)[-1] == "quiz"
     every_but_dance = [name for name in ENTERTAINMENT_ACTIVITIES if name != "dance"]
-    assert {chooser.choose(profile, rng, exclude=every_but_dance) for _ in range(10)} == {"dance"}
+    assert {chooser.choose(profile, rng, exclude=every_but_dance).activity for _ in range(10)} == {
+        "dance"
+    }
 
 
 def test_the_chooser_uses_the_profile_it_holds_when_the_store_is_gone(tmp_path: object) -> None:
@@ -143,5 +145,5 @@ def test_the_chooser_uses_the_profile_it_holds_when_the_store_is_gone(tmp_path: 
     with store.engine.begin() as connection:
         connection.execute(text("DROP TABLE activity_scores"))
     chooser = ActivityChooser(PreferenceModel.from_seed(), store)
-    assert chooser.choose(profile, random.Random(1)) in ENTERTAINMENT_ACTIVITIES
+    assert chooser.choose(profile, random.Random(1)).activity in ENTERTAINMENT_ACTIVITIES
     store.close()

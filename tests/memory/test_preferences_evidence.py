@@ -87,9 +87,11 @@ def test_thompson_draws_follow_the_evidence() -> None:
         }
     )
     rng = random.Random(1)
-    picks = [CHOOSER.choose(profile, rng) for _ in range(200)]
+    picks = [CHOOSER.choose(profile, rng).activity for _ in range(200)]
     assert picks.count("bingo") >= 180
-    assert {CHOOSER.choose(profile, rng, exclude={"bingo"}) for _ in range(50)} != {"bingo"}
+    assert {CHOOSER.choose(profile, rng, exclude={"bingo"}).activity for _ in range(50)} != {
+        "bingo"
+    }
 
 
 def test_early_on_it_tries_several_activities() -> None:
@@ -101,7 +103,7 @@ def test_early_on_it_tries_several_activities() -> None:
         scores: dict[str, ActivityScore] = {}
         picks = []
         for _ in range(20):
-            name = CHOOSER.choose(_profile(scores, age=persona.features["age"]), rng)
+            name = CHOOSER.choose(_profile(scores, age=persona.features["age"]), rng).activity
             picks.append(name)
             old = scores.get(name, ActivityScore())
             scores[name] = ActivityScore(

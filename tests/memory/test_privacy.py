@@ -34,7 +34,7 @@ def daemon(db_path: Path) -> Iterator[tuple[ProfileStore, Agenda]]:
     """The daemon's store and agenda on one database file."""
     url = f"sqlite:///{db_path}"
     store = ProfileStore(url)
-    agenda = Agenda(url, user_exists=lambda user: user in store.list_ids())
+    agenda = Agenda.open(url, user_exists=lambda user: user in store.list_ids())
     yield store, agenda
     agenda.close()
     store.close()

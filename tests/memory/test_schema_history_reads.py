@@ -55,7 +55,7 @@ def test_neither_a_first_start_nor_a_restart_imports_alembic(tmp_path: Path) -> 
     url = f"sqlite:///{tmp_path / 'dms.db'}"
     code = (
         "import sys; from memory import ProfileStore; from agenda import Agenda;"
-        f" ProfileStore({url!r}).close(); a = Agenda({url!r}); getattr(a, 'close', int)();"
+        f" ProfileStore({url!r}).close(); a = Agenda.open({url!r}); getattr(a, 'close', int)();"
         " print('alembic' in sys.modules)"
     )
     first = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

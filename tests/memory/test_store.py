@@ -105,6 +105,7 @@ def test_params_are_flat_and_leave_unset_fields_out(store: ProfileStore) -> None
         ({"name": ""}, "name"),
         ({"name": "x" * 201}, "name"),
         ({"Bad Name": 1}, "Bad Name"),
+        ({"pets\n": 1}, "pets"),  # a name ending in a line break is not a name
         ({"likes": "dance"}, "likes"),
         ({"pets": ["cat"]}, "pets"),
     ],

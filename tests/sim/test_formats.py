@@ -157,3 +157,27 @@ def test_an_activity_whose_first_command_never_starts_has_no_load_time() -> None
     observer.on_tick(8.0)  # cancelled before any command: not loaded, not waited for
     assert observer.metrics.load_times == []
     assert observer.metrics.activities == 2
+
+
+def test_the_stop_request_to_the_next_start_is_measured_beside_the_change_time() -> None:
+    """The paper's 43.12 s row both ways: from an activity's end, and from the request."""
+    observer = SessionObserver()
+    feed = [
+        (10.0, _d("start", "quiz", "user_choice", "user")),
+        (100.0, _d("pause", "quiz", "confirm_cancel", "user")),  # the shoulder touched
+        (108.0, _d("cancel", "quiz", "confirm_cancel", "user")),  # "stop"
+        (140.0, _d("start", "jokes", "preference", "robot")),
+        (150.0, _d("pause", "jokes", "confirm_cancel", "user")),
+        (155.0, _d("resume", "jokes", "confirm_cancel", "user")),  # "continue": no stop
+        (300.0, _d("complete", "jokes", "completed", "robot")),
+        (330.0, _d("start", "bingo", "user_choice", "user")),
+        (400.0, _d("cancel", "bingo", "user_request", "user")),  # "stop" in words
+        (420.0, _d("start", "news", "user_choice", "user")),
+    ]
+    for t, decision in feed:
+        observer.on_decision(TimedDecision(t, decision))
+    m = observer.metrics
+    assert m.change_times == [32.0, 30.0, 20.0]
+    assert m.stop_times == [40.0, 20.0]
+    result = StudyResult([m], 1.0, 30.0, "moderate", 0)
+    assert result.to_json()["outcomes"]["stop_to_start_s"] == 30.0

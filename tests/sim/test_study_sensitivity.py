@@ -27,3 +27,22 @@ def test_the_command_writes_a_csv_and_a_tornado_chart(tmp_path: Path) -> None:
     assert rows[0].startswith("input,direction")
     assert len(rows) > 2
     assert (tmp_path / "sensitivity.png").stat().st_size > 1000
+
+
+def test_the_robots_and_the_controllers_inputs_move_their_rows_above_the_noise() -> None:
+    inputs = ["launch_delay_s", "controller.session_questions"]
+    result = sweep(inputs, [0, 1, 2], sessions=4, minutes=8.0)
+    assert set(result.noise) == set(result.baseline)  # a floor per metric
+    load = "activity_load_time_s"
+    assert result.effect("launch_delay_s", "high", load) > result.noise[load] > 0.0
+    assert result.effect("launch_delay_s", "low", load) < 0.0
+    assert result.driver(load) == "launch_delay_s"
+    asked = "questions_per_session"  # 4 questions moved to 2 and 6
+    assert result.effect("controller.session_questions", "low", asked) == -2.0
+    assert result.effect("controller.session_questions", "high", asked) == 2.0
+    assert result.to_json()["noise_floor"][load] == round(result.noise[load], 4)
+
+
+def test_an_unknown_input_is_refused_naming_the_known_ones(tmp_path: Path) -> None:
+    args = ["sim", "sensitivity", "--only", "menu_delay", "--out", str(tmp_path)]
+    assert main(args) == 2

@@ -9,6 +9,7 @@ const UNITS = [
   [/_m$/, "metres"],
 ];
 let frames = ["user", "face:<id>", "object:<name>"];
+let taskFrames = []; // the behavior's own (frames: at its top)
 const FRAME_PARAMS = ["frame", "toward", "attend"];
 const LONG_TEXT = ["text", "question", "description"];
 const SINGLE = /^\s*\{[A-Za-z_][\w.]*(\|[^{}]*)?\}\s*$/;
@@ -25,6 +26,7 @@ export function kinds(schema) {
     if (option.type) types.add(option.type);
     else if (!option.enum && option.const === undefined) types.add("any");
   }
+  if (schema.choices) choices = schema.choices; // the robot's repertoire (the palette's)
   return { types, choices };
 }
 
@@ -94,7 +96,8 @@ export function field(name, schema, value, required, onInput) {
     empty.value = "";
     empty.textContent = schema.default !== undefined ? `(default: ${schema.default})` : "(none)";
     input.appendChild(empty);
-    for (const choice of choices) {
+    const listed = value === undefined || choices.some((choice) => JSON.stringify(choice) === JSON.stringify(value));
+    for (const choice of listed ? choices : [value, ...choices]) {
       const option = document.createElement("option");
       option.value = JSON.stringify(choice);
       option.textContent = String(choice);
@@ -163,7 +166,7 @@ function ensureFrames() {
     document.body.appendChild(list);
   }
   list.replaceChildren();
-  for (const frame of frames) {
+  for (const frame of [...taskFrames, ...frames]) {
     const option = document.createElement("option");
     option.value = frame;
     list.appendChild(option);
@@ -172,5 +175,12 @@ function ensureFrames() {
 
 export function setFrames(list) {
   frames = list;
+  ensureFrames();
+}
+
+// The task frames the behavior declares, offered first by the frame picker.
+export function setTaskFrames(names) {
+  if (JSON.stringify(names) === JSON.stringify(taskFrames)) return;
+  taskFrames = names;
   ensureFrames();
 }

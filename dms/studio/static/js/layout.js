@@ -1,7 +1,9 @@
-// Automatic layout with dagre (vendor/dagre.min.js, MIT): each container's states are
-// laid out inside it, innermost first, and the container becomes a box of that size in
-// its parent. A state machine's transitions are the edges; a container's outcomes are
-// end nodes (pills) inside its box.
+// Automatic layout with dagre (vendor/dagre.min.js, MIT), left to right as the
+// behavior runs: each container's states are laid out inside it, innermost first, and
+// the container becomes a box of that size in its parent. A state machine's transitions
+// are the edges; a container's outcomes are end nodes (pills) inside its box. A state
+// placed by hand (doc.layout[path] = [x, y], its top left inside its container) stays
+// where it was put; the others are laid out around it.
 
 import { blockOf, childKey, join, MACHINES } from "./doc.js";
 
@@ -23,7 +25,7 @@ function box(doc, path, kind, outcomesOf) {
   const states = doc.statesOf(path) || {};
   const machine = !path || MACHINES.includes(kind);
   const graph = new dagre.graphlib.Graph();
-  graph.setGraph({ rankdir: "TB", nodesep: 28, ranksep: 44, marginx: PAD, marginy: PAD });
+  graph.setGraph({ rankdir: "LR", nodesep: 30, ranksep: 60, marginx: PAD, marginy: PAD });
   graph.setDefaultEdgeLabel(() => ({}));
   const inner = {};
   for (const [name, state] of Object.entries(states)) {
@@ -55,24 +57,40 @@ function box(doc, path, kind, outcomesOf) {
         if (written === undefined && ends.includes(outcome)) graph.setEdge(name, `\u0000${outcome}`);
       }
     }
+    // a state nothing leads to yet (just added, say) goes right of the one written
+    // before it, not into a pile in the first column: a hint to the layout, not drawn
+    const names = Object.keys(states);
+    const reached = new Set(graph.edges().map((edge) => edge.w));
+    names.forEach((name, index) => {
+      if (index > 0 && !reached.has(name) && !graph.hasEdge(names[index - 1], name)) {
+        graph.setEdge(names[index - 1], name, { weight: 0 });
+      }
+    });
   }
   dagre.layout(graph);
   const items = [];
+  let right = MIN_W;
+  let bottom = 40;
   for (const id of graph.nodes()) {
     const node = graph.node(id);
-    const x = node.x - node.width / 2;
-    const y = node.y - node.height / 2;
+    let x = node.x - node.width / 2;
+    let y = node.y - node.height / 2;
     if (id.startsWith("\u0000")) {
       items.push({ kind: "end", container: path, outcome: id.slice(1), x, y, w: END_W, h: END_H });
     } else {
-      items.push({ kind: "state", path: join(path, id), x, y, w: node.width, h: node.height, inner: inner[id] });
+      const here = join(path, id);
+      const pin = doc.layout[here];
+      if (Array.isArray(pin)) [x, y] = pin;
+      items.push({ kind: "state", path: here, x, y, w: node.width, h: node.height, inner: inner[id], pinned: !!pin });
     }
+    right = Math.max(right, x + node.width + PAD);
+    bottom = Math.max(bottom, y + node.height + PAD);
   }
-  const size = graph.graph();
-  return { w: Math.max(size.width || 0, MIN_W), h: Math.max(size.height || 0, 40), items };
+  return { w: right, h: bottom, items };
 }
 
-// Every state and end node with absolute coordinates: [{kind, path, x, y, w, h}, ...].
+// Every state and end node with absolute coordinates: [{kind, path, x, y, w, h, ox, oy},
+// ...]; (ox, oy) is the origin of its container, where a placement by hand is counted from.
 export function layout(doc, outcomesOf) {
   const placed = [];
   function place(items, dx, dy) {
@@ -84,7 +102,8 @@ export function layout(doc, outcomesOf) {
         continue;
       }
       const container = item.inner.items.length > 0 || childKey(blockOf(doc.state(item.path)));
-      placed.push({ kind: "state", path: item.path, x, y, w: item.w, h: item.h, container: !!container });
+      placed.push({ kind: "state", path: item.path, x, y, w: item.w, h: item.h, ox: dx, oy: dy,
+        container: !!container, pinned: item.pinned });
       if (container) place(item.inner.items, x + (item.w - item.inner.innerW) / 2, y + HEADER);
     }
   }

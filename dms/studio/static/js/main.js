@@ -4,7 +4,9 @@
 import { get, post } from "./api.js";
 import { Canvas } from "./canvas.js";
 import { blockOf, Doc, nameOf, parentOf } from "./doc.js";
-import { setFrames } from "./fields.js";
+import { setFrames, setTaskFrames } from "./fields.js";
+import { Files } from "./files.js";
+import { Posing } from "./pose.js";
 import { Props } from "./props.js";
 import { RulesPane } from "./rules.js";
 import { Trial } from "./trial.js";
@@ -18,6 +20,7 @@ const FIRST_VALUES = {
 
 const app = {
   doc: new Doc({ name: "new_behavior", outcomes: ["done"], states: {} }, { name: null, hash: null }),
+  folder: "",
   blocks: {},
   top: {},
   selected: null,
@@ -83,13 +86,16 @@ function addBlock(block) {
   const name = doc.uniqueName(parent, block);
   const path = doc.addState(parent, name, { [block]: firstParams(block) });
   select(path);
+  canvas.reveal(path);
 }
 
 // ------------------------------------------------------------ selection and edits
 
 const canvas = new Canvas(document.getElementById("canvas"), app.doc, {
-  select: (path) => select(path),
+  select: (path, { add = false } = {}) => select(path, add),
+  selectMany: (paths) => selectMany(paths),
   connect: (path, outcome, target) => app.doc.setTransition(path, outcome, target),
+  place: (moves) => app.doc.place(moves),
   defaultOutcomes,
 });
 
@@ -98,7 +104,11 @@ const props = new Props(document.getElementById("props"), {
   get blocks() { return app.blocks; },
   get top() { return app.top; },
   outcomesOf: (path) => canvas.outcomesOf(path),
+  get limits() { return posing.limits; },
   setParam: (path, name, value, typing) => app.doc.setParam(path, name, value, typing),
+  setParams: (path, values, quiet) => app.doc.setParams(path, values, quiet),
+  play: (path) => trial.start(path, true),
+  goto: (joints) => posing.pose(joints),
   rename: (path, name) => {
     const renamed = app.doc.rename(path, name);
     if (renamed) select(renamed);
@@ -109,54 +119,90 @@ const props = new Props(document.getElementById("props"), {
   action: (action, path) => act(action, path),
 });
 
-function select(path) {
-  app.selected = path && app.doc.state(path) ? path : null;
+// Select a state (add: toggle it in the selection, as Shift-click does); null: none.
+function select(path, add = false) {
+  const found = path && app.doc.state(path) ? path : null;
+  if (add && found) {
+    if (canvas.selection.has(found)) canvas.selection.delete(found);
+    else canvas.selection.add(found);
+  } else {
+    canvas.selection = new Set(found ? [found] : []);
+  }
+  showSelection();
+}
+
+function selectMany(paths) {
+  canvas.selection = new Set(paths.filter((path) => app.doc.state(path)));
+  showSelection();
+}
+
+function showSelection() {
+  for (const path of [...canvas.selection]) if (!app.doc.state(path)) canvas.selection.delete(path);
+  const chosen = [...canvas.selection];
+  app.selected = chosen.length === 1 ? chosen[0] : null;
   canvas.selected = app.selected;
   canvas.render();
-  props.render(app.selected);
+  if (chosen.length > 1) props.renderMany(chosen);
+  else props.render(app.selected);
+  document.body.dataset.selected = String(chosen.length);
 }
 
 function act(action, path) {
-  if (action === "delete" && path) {
+  if (action === "delete" && canvas.selection.size > 1) {
+    app.doc.deleteStates([...canvas.selection]);
+    select(null);
+  } else if (action === "delete" && path) {
     app.doc.deleteState(path);
     select(null);
-  } else if (action === "copy" && path) {
-    app.clipboard = { name: nameOf(path), state: JSON.parse(JSON.stringify(app.doc.state(path))) };
-    status(`copied ${nameOf(path)}`);
+  } else if (action === "copy" && canvas.selection.size) {
+    // the selected states of one container (those of the first one's, if several)
+    const chosen = [...canvas.selection].filter((one) => parentOf(one) === parentOf([...canvas.selection][0]));
+    app.clipboard = chosen.map((one) => ({ name: nameOf(one), state: JSON.parse(JSON.stringify(app.doc.state(one))) }));
+    status(`copied ${chosen.map(nameOf).join(", ")}`);
   } else if (action === "paste" && app.clipboard) {
     const parent = path ? (app.doc.isContainer(path) ? path : parentOf(path)) : "";
-    select(app.doc.paste(parent, app.clipboard.name, app.clipboard.state));
+    const pasted = app.doc.pasteMany(parent, app.clipboard);
+    selectMany(pasted);
+    if (pasted.length === 1) select(pasted[0]);
   } else if (action === "run-state" && path) {
     trial.runState();
   }
 }
 
 function watch(doc) {
-  doc.onChange((structural) => {
-    canvas.render();
-    if (structural) props.render(app.selected);
-    scheduleCheck();
+  doc.onChange((structural, kind) => {
+    if (kind === "load") {
+      canvas.outcomes = {};
+      canvas.selection = new Set();
+      app.selected = null;
+      canvas.selected = null;
+      canvas.render();
+      canvas.fit();
+      props.render(null);
+      document.getElementById("open-select").value = doc.file.name || "";
+    } else if (kind !== "saved") {
+      canvas.render();
+      if (structural) showSelection();
+    }
+    if (kind !== "saved") {
+      scheduleCheck();
+      files.edited();
+      const declared = doc.data.frames;
+      setTaskFrames(declared && typeof declared === "object" ? Object.keys(declared) : []);
+    }
     updateTitle();
   });
 }
 
-function setDoc(doc) {
-  app.doc = doc;
-  canvas.setDoc(doc);
-  canvas.outcomes = {};
-  watch(doc);
-  app.selected = null;
-  canvas.selected = null;
-  canvas.render();
-  canvas.fit();
-  props.render(null);
-  updateTitle();
-  scheduleCheck();
-}
-
 function updateTitle() {
-  const file = app.doc.file.name ? `${app.doc.file.name}.yaml` : "new, not saved";
-  document.getElementById("doc-title").textContent = `${app.doc.data.name || "?"} (${file})`;
+  const doc = app.doc;
+  const file = doc.file.name ? `${doc.file.name}.yaml` : "new, not saved";
+  const title = document.getElementById("doc-title");
+  title.textContent = `${doc.data.name || "?"} (${file})`;
+  title.classList.toggle("modified", doc.modified);
+  title.title = doc.modified ? "modified: not saved yet" : "as saved";
+  document.body.dataset.modified = doc.modified ? "1" : "0";
+  document.title = `${doc.modified ? "● " : ""}${doc.data.name || "?"} — dms studio`;
 }
 
 // ------------------------------------------------------------ checking
@@ -195,7 +241,8 @@ function rerenderKeepingFocus() {
   const active = document.activeElement;
   const id = active && active.id;
   const caret = active && "selectionStart" in active ? [active.selectionStart, active.selectionEnd] : null;
-  props.render(app.selected);
+  if (canvas.selection.size > 1) props.renderMany([...canvas.selection]);
+  else props.render(app.selected);
   const again = id && document.getElementById(id);
   if (!again) return;
   again.focus();
@@ -212,32 +259,11 @@ async function refreshList(selectName) {
   for (const name of reply.data.names) select.appendChild(new Option(name, name));
   select.value = selectName || "";
   select.title = reply.data.folder;
+  app.folder = reply.data.folder;
   document.querySelector('#try-on option[value="daemon"]').disabled = !reply.data.daemon;
 }
 
-async function open(name) {
-  if (!name) return;
-  const reply = await get(`/api/behaviors/${encodeURIComponent(name)}`);
-  if (!reply.ok) return status(reply.data.error, "bad");
-  setDoc(new Doc(reply.data.doc, { name: reply.data.name, hash: reply.data.hash }));
-  status(`opened ${name}`);
-}
-
-async function save() {
-  const doc = app.doc;
-  const renamed = doc.file.name && doc.file.name !== doc.data.name;
-  const reply = await post("/api/save", { doc: doc.data, hash: renamed ? null : doc.file.hash });
-  if (!reply.ok) return status(`not saved: ${reply.data.error}`, "bad");
-  if (reply.data.kind === "saved") {
-    doc.file = { name: doc.data.name, hash: reply.data.hash };
-    status(`saved ${reply.data.file}`, "good");
-    await refreshList(doc.data.name);
-  } else {
-    status(`it does not load yet: saved as a draft, ${reply.data.file}; the file is unchanged`, "bad");
-  }
-  document.body.dataset.saved = reply.data.kind;
-  updateTitle();
-}
+const files = new Files(app, { status, refreshList });
 
 // ------------------------------------------------------------ record
 
@@ -257,10 +283,12 @@ function record(joints) {
   const old = state[block][param];
   const value = type.includes("array") ? [...(Array.isArray(old) ? old : []), joints] : joints;
   app.doc.setParam(path, param, value, false);
-  status(`recorded pose into ${param}: ${shown}`, "good");
+  const count = Array.isArray(value) ? ` (keyframe ${value.length})` : "";
+  status(`recorded pose into ${param}${count}: ${shown}`, "good");
 }
 
 new RulesPane();
+const posing = new Posing({ status });
 
 const trial = new Trial({
   doc: () => app.doc,
@@ -271,6 +299,7 @@ const trial = new Trial({
   },
   status,
   record,
+  moved: (joints) => posing.show(joints),
 });
 
 // ------------------------------------------------------------ start
@@ -281,7 +310,7 @@ function bindKeys() {
     const mod = event.ctrlKey || event.metaKey;
     if (mod && event.key === "s") {
       event.preventDefault();
-      save();
+      files.save();
     } else if (typing) {
       return;
     } else if (mod && event.key === "z") {
@@ -292,43 +321,50 @@ function bindKeys() {
       act("copy", app.selected);
     } else if (mod && event.key === "v") {
       act("paste", app.selected);
-    } else if (event.key === "Delete" && app.selected) {
+    } else if (event.key === "Delete" && canvas.selection.size) {
       act("delete", app.selected);
+    } else if (mod && event.key === "a" && !document.body.classList.contains("rules-open")) {
+      event.preventDefault();
+      selectMany(Object.keys(app.doc.statesOf("") || {}));
     }
   });
   const on = (id, fn) => document.getElementById(id).addEventListener("click", fn);
-  on("new-button", () => {
-    setDoc(new Doc({ name: "new_behavior", outcomes: ["done"], states: {} }, { name: null, hash: null }));
-    document.getElementById("open-select").value = "";
-  });
-  on("save-button", save);
+  on("new-button", () => files.newDoc());
+  on("save-button", () => files.save());
   on("undo-button", () => app.doc.undo());
   on("redo-button", () => app.doc.redo());
   on("zoom-in", () => canvas.zoom(1.2));
   on("zoom-out", () => canvas.zoom(1 / 1.2));
   on("zoom-fit", () => canvas.fit());
-  document.getElementById("open-select").addEventListener("change", (event) => open(event.target.value));
+  on("arrange", () => {
+    const chosen = canvas.selection.size ? [...canvas.selection] : null;
+    if (!app.doc.unplace(chosen)) status("nothing placed by hand to lay out again");
+  });
+  document.getElementById("open-select").addEventListener("change", (event) => files.open(event.target.value));
 }
 
 async function start() {
   bindKeys();
-  const reply = await get("/api/palette");
+  // asked together: each answer is small, the round trips are what the page waits for
+  const [reply, frames] = await Promise.all([get("/api/palette"), get("/api/frames"),
+    refreshList(""), posing.start()]);
   if (!reply.ok) {
     status(reply.data.error || "the studio refused the page: open the URL it printed", "bad");
     return;
   }
   renderPalette(reply.data.categories);
   app.top = reply.data.top;
-  await refreshList("");
-  const frames = await get("/api/frames");
   if (frames.ok) setFrames(frames.data.frames);
-  setDoc(app.doc);
+  watch(app.doc);
+  canvas.render();
+  canvas.fit();
+  props.render(null);
+  updateTitle();
+  scheduleCheck();
   const wanted = new URLSearchParams(location.search).get("open");
-  if (wanted) {
-    document.getElementById("open-select").value = wanted;
-    await open(wanted);
-  }
+  const loaded = wanted ? await files.load(wanted) : true;
   document.body.dataset.ready = "1";
+  if (loaded) await files.offerDraft(wanted || null); // edits this browser kept, if any
 }
 
 start();

@@ -2,10 +2,17 @@
 // from the block's schema), its transitions, and the loader's messages at their field.
 // With nothing selected it shows the behavior's own settings.
 
-import { blockOf, childKey, MACHINES, nameOf, parentOf } from "./doc.js";
+import { blockOf, childKey, join, MACHINES, nameOf, parentOf } from "./doc.js";
+import { activityForm } from "./activity.js";
 import { field } from "./fields.js";
+import { keyframesForm, mappingForm, outcomeMapForm, taskFramesForm } from "./forms.js";
 
 const HIDDEN = ["states", "state"];
+const SET_DATA = {
+  values: "Keys set to these values.",
+  add: "Numbers added to these keys.",
+  append: "Values appended to these lists.",
+};
 
 function h(tag, attrs, text) {
   const node = document.createElement(tag);
@@ -17,7 +24,9 @@ function h(tag, attrs, text) {
 export class Props {
   constructor(panel, handlers) {
     this.panel = panel;
-    this.handlers = handlers; // {doc(), blocks, top, rename, select, outcomesOf, action}
+    // {doc(), blocks, top, limits, rename, select, outcomesOf, action, setParam, setParams,
+    //  play(path), goto(joints)}
+    this.handlers = handlers;
     this.fields = {};
     this.messages = [];
     this.path = null;
@@ -40,12 +49,20 @@ export class Props {
     this.panel.appendChild(h("div", { class: "doc" },
       "Click a block on the left to add a state; click a state to edit it."));
     const top = this.handlers.top;
-    for (const name of ["name", "description", "outcomes", "userdata", "attend"]) {
+    for (const name of ["name", "description", "outcomes", "userdata", "attend", "frames"]) {
       const schema = top[name] || {};
       const required = ["name", "outcomes"].includes(name);
-      const made = field(name, schema, doc.data[name], required, (value, typing) => {
-        this.handlers.setParam("", name, value, typing);
-      });
+      const set = (value) => this.handlers.setParams("", { [name]: value }, true);
+      let made;
+      if (name === "userdata") {
+        made = mappingForm(name, "userdata", doc.data.userdata, "The keys the behavior starts with, and their values.", set);
+      } else if (name === "frames") {
+        made = taskFramesForm(doc.data.frames, set);
+      } else {
+        made = field(name, schema, doc.data[name], required, (value, typing) => {
+          this.handlers.setParam("", name, value, typing);
+        });
+      }
       this.fields[name] = made;
       this.panel.appendChild(made.element);
     }
@@ -56,6 +73,9 @@ export class Props {
       this.fields.initial = initial;
       this.panel.appendChild(initial.element);
     }
+    this.fields.activity = activityForm(doc.data.activity, top.activity || {},
+      (value, typing) => this.handlers.setParam("", "activity", value, typing));
+    this.panel.appendChild(this.fields.activity.element);
     this.addProblems();
   }
 
@@ -77,10 +97,13 @@ export class Props {
     const required = schema.required || [];
     for (const [name, prop] of Object.entries(schema.properties || {})) {
       if (HIDDEN.includes(name)) continue;
-      const made = field(name, prop, params[name], required.includes(name), (value, typing) => {
-        this.handlers.setParam(path, name, value, typing);
-      });
+      const made = this.structured(doc, path, block, name, params)
+        || field(name, prop, params[name], required.includes(name), (value, typing) => {
+          this.handlers.setParam(path, name, value, typing);
+        });
+      if (made === "none") continue;
       this.fields[name] = made;
+      if (block === "pose" && name === "keyframes") this.fields.seconds = made;
       this.panel.appendChild(made.element);
     }
     if (MACHINES.includes(doc.containerKind(parentOf(path)))) this.renderTransitions(doc, path, state);
@@ -99,6 +122,57 @@ export class Props {
     }
     this.panel.appendChild(actions);
     this.addProblems();
+  }
+
+  // A form for a parameter that is a structure (null: an ordinary field; "none": shown
+  // by another one's form, as a pose's seconds are by its keyframes).
+  structured(doc, path, block, name, params) {
+    if (block === "pose" && name === "seconds") return "none";
+    if (block === "pose" && name === "keyframes" && !(typeof params.keyframes === "string")) {
+      return keyframesForm(params.keyframes, params.seconds, this.handlers.limits, {
+        onChange: (keyframes, seconds, quiet) => this.handlers.setParams(path, { keyframes, seconds }, quiet),
+        play: () => this.handlers.play(path),
+        goto: (joints) => this.handlers.goto(joints),
+      });
+    }
+    if (name === "userdata") {
+      return mappingForm(name, "userdata", params.userdata, "This container's own keys and their values.",
+        (value) => this.handlers.setParams(path, { [name]: value }, true));
+    }
+    if (block === "set_data" && SET_DATA[name] && (params[name] === undefined || typeof params[name] === "object")) {
+      return mappingForm(name, name, params[name], SET_DATA[name],
+        (value) => this.handlers.setParams(path, { [name]: value }, true));
+    }
+    if (block === "concurrence" && name === "outcome_map") {
+      const children = Object.keys(doc.statesOf(path) || {})
+        .map((child) => [child, this.handlers.outcomesOf(join(path, child))]);
+      return outcomeMapForm(params.outcome_map, params.outcomes || [], children,
+        (value) => this.handlers.setParams(path, { [name]: value }, true));
+    }
+    return null;
+  }
+
+  // Several states selected: what can be done to them together.
+  renderMany(paths) {
+    this.path = null;
+    this.fields = {};
+    this.panel.replaceChildren();
+    this.panel.appendChild(h("h2", {}, `${paths.length} states selected`));
+    this.panel.appendChild(h("div", { class: "doc" },
+      "Drag one of them to move them all; Delete removes them (Undo brings them back). "
+      + "Shift-click adds or removes a state; Shift-drag on the background selects a rectangle."));
+    const list = h("ul", { class: "selection" });
+    for (const path of paths) {
+      const item = h("li", {}, path);
+      item.addEventListener("click", () => this.handlers.select(path));
+      list.appendChild(item);
+    }
+    this.panel.appendChild(list);
+    const remove = h("button", { "data-action": "delete" }, `Delete ${paths.length} states`);
+    remove.addEventListener("click", () => this.handlers.action("delete", null));
+    this.panel.appendChild(remove);
+    this.addProblems();
+    this.showMessages(this.messages);
   }
 
   renderTransitions(doc, path, state) {

@@ -22,7 +22,7 @@ function h(tag, text, cls) {
 
 export class Trial {
   constructor(handlers) {
-    this.handlers = handlers; // {doc(), selected(), lit(paths), status(text, kind), record(joints)}
+    this.handlers = handlers; // {doc(), selected(), lit(paths), status(text, kind), record(joints), moved(joints)}
     this.running = false; // the run goes on by itself
     this.active = false; // a trial was started and has not finished
     this.timer = null;
@@ -37,6 +37,16 @@ export class Trial {
     on("answer-button", () => this.answer());
     on("skip-button", () => this.step(this.running));
     on("record-button", () => this.record());
+    const marker = document.getElementById("marker-seen");
+    marker.addEventListener("change", async () => {
+      const reply = await post("/api/try/marker", { seen: marker.checked });
+      if (!reply.ok) {
+        marker.checked = !marker.checked;
+        this.handlers.status(reply.data.error, "bad");
+        return;
+      }
+      this.log(reply.data.seen ? "the marker is seen again" : "the marker is hidden");
+    });
     document.getElementById("answer-input").addEventListener("keydown", (event) => {
       if (event.key === "Enter") this.answer();
     });
@@ -68,6 +78,7 @@ export class Trial {
       return;
     }
     this.active = true;
+    document.getElementById("marker-seen").checked = true; // each trial starts with it seen
     this.prefix = state && state.includes("/") ? state.slice(0, state.lastIndexOf("/")) : "";
     this.show(reply.data);
   }
@@ -212,6 +223,8 @@ export class Trial {
     box.appendChild(h("div", `screen: ${shown || "-"}`));
     const joints = Object.entries(robot.joints).map(([k, v]) => `${k} ${v.toFixed(2)}`).join("  ");
     box.appendChild(h("div", joints, "joints"));
+    box.dataset.joints = JSON.stringify(robot.joints);
+    if (this.handlers.moved) this.handlers.moved(robot.joints);
   }
 
   log(text) {

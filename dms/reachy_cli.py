@@ -1,0 +1,117 @@
+"""``dms reachy``: drive a Reachy Mini as the daemon's robot, from its own environment.
+
+Pollen Robotics' SDK (``reachy-mini``, with its MuJoCo simulator) pins its own pydantic,
+numpy, starlette and pip floors and builds PyGObject against Debian's cairo and
+GObject headers: installed beside the daemon it would move the daemon's dependencies.
+The bridge is therefore a distribution of its own, ``reachy/`` in the checkout, installed
+into ``.venv-reachy`` beside it with the daemon's Python, made or brought up to date
+when ``reachy/pyproject.toml`` is newer than its stamp; then this process becomes the
+bridge (``exec``). It reaches the daemon over Zenoh only (docs/reachy.md).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from dms.kernel import keys
+from dms.kernel.errors import ConfigError
+
+CHECKOUT = Path(__file__).resolve().parents[1]
+"""The folder holding ``dms/`` and, in a checkout, ``reachy/``."""
+SOURCE = CHECKOUT / "reachy"
+VENV = CHECKOUT / ".venv-reachy"
+STAMP_NAME = ".installed-stamp"
+SYSTEM_PACKAGES = (
+    "libcairo2-dev libgirepository1.0-dev gir1.2-gstreamer-1.0 gir1.2-gst-plugins-base-1.0"
+    " espeak-ng"
+)
+"""Debian's packages the SDK needs (PyGObject builds against the first two, the SDK's
+daemon loads GStreamer's bindings, Gst, GstApp and GstPbutils) and the bridge's voice."""
+
+
+def bridge_python(venv: Path = VENV) -> Path:
+    return venv / "bin" / "python"
+
+
+def prepare(venv: Path = VENV, source: Path = SOURCE, echo: bool = True) -> Path:
+    """Make (or bring up to date) the bridge's environment; return its Python.
+
+    Raises ConfigError, with pip's last lines, when it cannot be made (no checkout, no
+    network and no cache, Debian's packages missing for PyGObject)."""
+    project = source / "pyproject.toml"
+    if not project.is_file():
+        raise ConfigError(
+            f"dms reachy needs the source checkout: {project} is missing "
+            "(the bridge is installed from reachy/ beside dms/)"
+        )
+    stamp = venv / STAMP_NAME
+    python = bridge_python(venv)
+    if python.exists() and stamp.exists() and stamp.stat().st_mtime >= project.stat().st_mtime:
+        return python
+    if echo:
+        typer.echo(f"dms reachy: preparing {venv} (pip install -e {source})", err=True)
+    steps = [
+        [sys.executable, "-m", "venv", str(venv)],
+        [str(python), "-m", "pip", "install", "--quiet", "-e", str(source)],
+    ]
+    for step in steps:
+        done = subprocess.run(step, capture_output=True, text=True, check=False)
+        if done.returncode != 0:
+            tail = " | ".join((done.stderr or done.stdout).strip().splitlines()[-3:])
+            raise ConfigError(
+                f"cannot prepare {venv}: {' '.join(step[:4])}: {tail} "
+                f"(on Debian: apt-get install {SYSTEM_PACKAGES})"
+            )
+    stamp.touch()
+    return python
+
+
+def reachy(
+    robot: Annotated[
+        str, typer.Option("--robot", "--robot-id", help="The robot whose keys to carry out.")
+    ] = "mini",
+    connect: Annotated[
+        list[str] | None,
+        typer.Option(help="Zenoh endpoint of a daemon or router (default tcp/127.0.0.1:7447)."),
+    ] = None,
+    zenoh_config: Annotated[
+        Path | None, typer.Option("--zenoh-config", help="Zenoh JSON5 configuration file.")
+    ] = None,
+    host: Annotated[str, typer.Option(help="The Reachy Mini daemon's host.")] = "localhost",
+    port: Annotated[int, typer.Option(help="The Reachy Mini daemon's port.")] = 8000,
+    media: Annotated[
+        bool,
+        typer.Option(help="Speak through the robot's speaker (espeak-ng); off: print speech."),
+    ] = False,
+    only_prepare: Annotated[
+        bool,
+        typer.Option("--prepare", help="Only make or update the bridge's environment, then exit."),
+    ] = False,
+) -> None:
+    """Drive a Reachy Mini (real or simulated) as the robot of a daemon run with
+    ``--robot zenoh``, until SIGINT or SIGTERM; the bridge runs in its own environment,
+    .venv-reachy beside the checkout, made on first use (docs/reachy.md)."""
+    if not keys.ROBOT_ID_RE.match(robot):
+        raise ConfigError(f"--robot {robot!r}: lower-case letters, digits, _ and - only")
+    if not 0 < port < 65536:
+        raise ConfigError(f"--port {port}: a TCP port, 1 to 65535")
+    python = prepare()
+    if only_prepare:
+        typer.echo(str(python))
+        return
+    argv = [str(python), "-m", "dms_reachy", "--robot", robot, "--host", host, "--port", str(port)]
+    for endpoint in connect or []:
+        argv += ["--connect", endpoint]
+    if zenoh_config is not None:
+        argv += ["--zenoh-config", str(zenoh_config)]
+    if media:
+        argv.append("--media")
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os.execv(argv[0], argv)
