@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 import math
 import random
+import uuid
 import zoneinfo
 from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
@@ -31,6 +32,7 @@ from motivation import MotivationConfigError, MotivationModel, load_config
 
 if TYPE_CHECKING:
     from agenda import Agenda
+    from dms.interactions import InteractionLog
     from dms.profiles import ProfileService
     from dms.rules import LiveRules
     from memory import ActivityChooser, ProfileStore, QuestionBank
@@ -83,6 +85,9 @@ class Stack:
         deps = self.controller.deps
         deps.profiles, deps.agenda = memory.profiles, memory.agenda
         deps.chooser, deps.questions = memory.chooser, memory.questions
+        deps.interactions = interaction_log(
+            memory.profiles, self.controller.settings.min_speech_confidence
+        )
 
     def when_ready(self, lock: AbstractContextManager[Any] | None = None) -> None:
         """Once the daemon is ready (``alive/dms`` declared), the work that can wait.
@@ -125,6 +130,19 @@ class Stack:
             close = getattr(self.agenda, "close", None)
             if close is not None:
                 close()
+
+
+def interaction_log(profiles: ProfileService, min_confidence: float) -> InteractionLog:
+    """The sessions' interaction events, written through the profile store's writer
+    (each write once, by its id, also when replayed from the spool)."""
+    from dms.interactions import InteractionLog
+
+    def write(user_id: str, session_key: str, events: list[dict[str, Any]]) -> None:
+        profiles.call(
+            "record_interactions", user_id, session_key, events, write_id=uuid.uuid4().hex
+        )
+
+    return InteractionLog(write, min_confidence, whole_sessions=not profiles.writer.threaded)
 
 
 def zone_of(timezone: str) -> zoneinfo.ZoneInfo:

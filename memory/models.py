@@ -2,7 +2,8 @@
 
 ``users`` holds one row per user (general information, interaction preferences,
 proactivity, free attributes); ``activity_scores`` the user's own running scores per
-activity; ``sessions``, ``activity_runs``, ``feedback`` and ``answers`` the history.
+activity; ``sessions``, ``activity_runs``, ``feedback``, ``answers`` and
+``interaction_events`` (:mod:`memory.interactions`) the history.
 Every history row hangs from its user with ``ON DELETE CASCADE`` so that erasing a
 user erases everything. Schema changes go through ``memory/migrations``.
 
@@ -173,6 +174,34 @@ class AnswerRow(Base):
     answer: Mapped[str] = mapped_column(Text)
     applied: Mapped[dict[str, Any] | None] = mapped_column(JSON)
     at: Mapped[datetime] = mapped_column(UtcDateTime())
+
+
+class InteractionEventRow(Base):
+    """One interaction event of a session: an offer, an input, a decision about the user's
+    activity, the arrival or the departure (:mod:`memory.interactions` says each column)."""
+
+    __tablename__ = "interaction_events"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    user_id: Mapped[str] = mapped_column(
+        ForeignKey("users.user_id", ondelete="CASCADE"), index=True
+    )
+    session_id: Mapped[int | None] = mapped_column(
+        ForeignKey("sessions.id", ondelete="CASCADE"), index=True
+    )
+    seq: Mapped[int] = mapped_column(Integer)
+    at: Mapped[datetime] = mapped_column(UtcDateTime())
+    event: Mapped[str] = mapped_column(String(20))
+    offer: Mapped[int | None] = mapped_column(Integer)
+    offer_kind: Mapped[str | None] = mapped_column(String(20))
+    channel: Mapped[str | None] = mapped_column(String(20))
+    value: Mapped[str | None] = mapped_column(String(200))
+    confidence: Mapped[float | None] = mapped_column(Float)
+    understood: Mapped[bool | None] = mapped_column(Boolean)
+    delay_s: Mapped[float | None] = mapped_column(Float)
+    activity: Mapped[str | None] = mapped_column(String(50))
+    by: Mapped[str | None] = mapped_column(String(64))
+    detail: Mapped[str | None] = mapped_column(String(200))
 
 
 class AppliedWriteRow(Base):

@@ -1,10 +1,12 @@
-"""``dms sessions list|export``: the Table 4 metrics of each real session.
+"""``dms sessions list|export``: the Table 4 metrics of each real session, and its events.
 
 The daemon stores each session's metrics (``dms.kernel.session_metrics``) when the session
 ends; these commands read them back from its database, so that a deployment yields
 its own Table 4 beside the paper's and the simulator's (the columns are those of
-``dms sim study --out``'s ``sessions.csv``). They only read: a database file that does
-not exist is refused in one line, never created.
+``dms sim study --out``'s ``sessions.csv``). ``export --events`` prints instead one row
+per interaction event (:mod:`memory.interactions`): what ``dms sim fit`` learns the
+simulated participants from, and what a researcher loads in pandas or R. They only
+read: a database file that does not exist is refused in one line, never created.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import typer
 from dms.kernel.cli_options import DbOption
 from dms.kernel.session_metrics import METRIC_KEYS
 from memory.cli import existing_url
+from memory.interactions import COLUMNS as EVENT_COLUMNS
 from memory.store import ProfileStore
 
 app = typer.Typer(no_args_is_help=True)
@@ -66,19 +69,39 @@ def read_rows(db: str | None, since: str | None) -> list[dict[str, Any]]:
     return rows
 
 
+def read_events(db: str | None, since: str | None) -> list[dict[str, Any]]:
+    """One flat row per interaction event (:data:`memory.interactions.COLUMNS`)."""
+    start = parse_since(since)
+    store = ProfileStore(existing_url(db))
+    try:
+        return store.interaction_events(start)
+    finally:
+        store.close()
+
+
 @app.command("export")
 def export_sessions(
     db: DbOption = None,
     since: SinceOption = None,
     fmt: Annotated[Literal["csv", "json"], typer.Option("--format", help="csv or json.")] = "json",
+    events: Annotated[
+        bool,
+        typer.Option(
+            "--events",
+            help="One row per interaction event (offers, inputs, activities) instead of "
+            "one per session (columns: docs/memory.md).",
+        ),
+    ] = False,
 ) -> None:
-    """Print every session's metrics to stdout, as CSV or JSON (a list of objects)."""
-    rows = read_rows(db, since)
+    """Print every session's metrics (or with --events its interaction events) to
+    stdout, as CSV or JSON (a list of objects)."""
+    rows = read_events(db, since) if events else read_rows(db, since)
     if fmt == "json":
         typer.echo(json.dumps(rows, indent=2))
         return
     out = io.StringIO()
-    writer = csv.DictWriter(out, fieldnames=list(COLUMNS), lineterminator="\n")
+    columns = EVENT_COLUMNS if events else COLUMNS
+    writer = csv.DictWriter(out, fieldnames=list(columns), lineterminator="\n")
     writer.writeheader()
     for row in rows:
         writer.writerow({k: "" if v is None else v for k, v in row.items()})

@@ -26,7 +26,7 @@ from typing import Any
 
 from sqlalchemy import Connection, delete, select
 
-from memory import proactivity, user_data
+from memory import interactions, proactivity, user_data
 from memory.errors import ProfileError, ProfileNotFound, StoreRefused
 from memory.failures import Conflict, classify
 from memory.models import (
@@ -35,11 +35,13 @@ from memory.models import (
     AnswerRow,
     AppliedWriteRow,
     FeedbackRow,
+    InteractionEventRow,
     SessionRow,
     UserRow,
 )
 from memory.profile import INTERACTION_STYLES, MAX_ATTRIBUTES, Profile, validate_fields
 from memory.rows import (
+    APPLIED_RESULT,
     END_SESSION,
     INSERT_ANSWER,
     INSERT_FEEDBACK,
@@ -235,6 +237,20 @@ class ProfileStore(StoreDatabase):
                     }
                     for a in rows(AnswerRow)
                 ],
+                "interactions": [
+                    {
+                        "session_id": e.session_id,
+                        "seq": e.seq,
+                        "time": e.at.isoformat(),
+                        "event": e.event,
+                        **{
+                            name: getattr(e, name)
+                            for name in interactions.COLUMNS[6:]
+                            if getattr(e, name) is not None
+                        },
+                    }
+                    for e in rows(InteractionEventRow)
+                ],
             }
             for part in user_data.parts():
                 extra = part.export_user(session, user_id)
@@ -255,6 +271,7 @@ class ProfileStore(StoreDatabase):
             # Explicit deletes, children first: no reliance on the backend's cascade.
             for model in (
                 AppliedWriteRow,
+                InteractionEventRow,
                 AnswerRow,
                 FeedbackRow,
                 ActivityRunRow,
@@ -324,6 +341,53 @@ class ProfileStore(StoreDatabase):
                 }
                 for row in session.scalars(query)
             ]
+
+    def record_interactions(
+        self,
+        user_id: str,
+        session: int | str | None,
+        events: list[dict[str, Any]],
+        write_id: str | None = None,
+    ) -> int:
+        """Append interaction events (:mod:`memory.interactions`) to ``session``'s record;
+        how many were stored.
+
+        ``session``: the session's id, or the key the daemon named it by (the
+        ``write_id`` of its :meth:`start_session`, found in ``applied_writes``), or None
+        for events of no stored session. A key that names no session stores the events
+        without one (they keep their user and times)."""
+        check_user_id(user_id)
+        rows = interactions.check_events(events)
+        if not (session is None or isinstance(session, str)) and (
+            isinstance(session, bool) or not isinstance(session, int)
+        ):
+            raise ProfileError(
+                f"session: must be an id, a session key or null (got {session!r:.60})"
+            )
+
+        def change(connection: Connection) -> int:
+            self._check_user(connection, user_id)
+            session_id: int | None = None
+            if isinstance(session, str):
+                found = connection.execute(APPLIED_RESULT, {"key_write_id": session}).first()
+                session_id = found[0] if found is not None else None
+            elif session is not None:
+                if connection.execute(SESSION_EXISTS, {"key_id": session}).first() is None:
+                    raise ProfileError(f"session: no session {session!r}")
+                session_id = session
+            interactions.insert_events(connection, user_id, session_id, rows)
+            return len(rows)
+
+        return self._once(write_id, user_id, change, lambda _: len(rows))
+
+    def interaction_events(self, since: datetime | None = None) -> list[dict[str, Any]]:
+        """Every interaction event of the sessions started at or after ``since`` (all
+        when None), one flat row each (:data:`memory.interactions.COLUMNS`), by session
+        and in order: what ``dms sessions export --events`` prints."""
+        if since is not None:
+            check_time("since", since)
+        with self._read_connection() as connection:
+            return interactions.read_events(connection, since)
 
     def record_activity(
         self,

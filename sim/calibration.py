@@ -185,6 +185,12 @@ class Calibration:
             raise TypeError(f"{name} is a range")
         return float(value)
 
+    def optional(self, name: str) -> float | None:
+        """A number these values may hold beside :data:`INPUTS` (a participants file's
+        ``decline_menu_rate``), None when they do not."""
+        value = dict(self.values).get(name)
+        return None if value is None or isinstance(value, tuple) else float(value)
+
     def span(self, name: str) -> tuple[float, float]:
         value = self[name]
         if not isinstance(value, tuple):

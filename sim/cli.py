@@ -15,7 +15,13 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import typer
 
-from dms.kernel.cli_options import DEFAULT_ENDPOINT, ConnectOption, JsonOption, RobotOption
+from dms.kernel.cli_options import (
+    DEFAULT_ENDPOINT,
+    ConnectOption,
+    DbOption,
+    JsonOption,
+    RobotOption,
+)
 from sim.errors import ExpectationFailed, SimError
 
 if TYPE_CHECKING:
@@ -150,6 +156,29 @@ SeedsOption = Annotated[
 ]
 
 
+ParticipantsOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--participants",
+        help="Draw the participants' habits from this file (made by dms sim fit) instead "
+        "of sim/calibration.py's values.",
+    ),
+]
+
+
+def _calibration(participants: Path | None) -> Any:
+    """The study's inputs: sim/calibration.py's, with a participants file's estimates."""
+    from sim.calibration import DEFAULT
+
+    if participants is None:
+        return DEFAULT
+    from sim.fit import load_participants
+
+    calibration, used = load_participants(participants)
+    print(f"dms: participants' inputs from {participants}: {', '.join(used)}", file=sys.stderr)
+    return calibration
+
+
 @app.command("study")
 def study_command(
     sessions: Annotated[int, typer.Option(min=1, max=10000, help="Participants.")] = 30,
@@ -178,8 +207,11 @@ def study_command(
     rules: RulesOption = None,
     out: Annotated[
         Path | None,
-        typer.Option("--out", help="Folder for sessions.csv, decisions.csv and table4.png."),
+        typer.Option(
+            "--out", help="Folder for sessions.csv, decisions.csv, events.csv and table4.png."
+        ),
     ] = None,
+    participants: ParticipantsOption = None,
     as_json: Annotated[
         bool, typer.Option("--json", help="Print JSON (docs/contract.md's keys).")
     ] = False,
@@ -188,6 +220,7 @@ def study_command(
     from sim.study import run_study, study_settings
 
     settings, raw = _design(config, rules)
+    calibration = _calibration(participants)
     chosen = _seeds(seeds)
     if chosen is not None:
         from sim.prediction import run_seeds, summary, table
@@ -201,6 +234,7 @@ def study_command(
                 study_settings(settings, raw),
                 chooser=chooser,
                 population=population,
+                calibration=calibration,
                 progress=told,
             )
         estimates = summary(results)
@@ -228,12 +262,16 @@ def study_command(
             population=population,
             record_decisions=out is not None,
             chooser=chooser,
+            calibration=calibration,
+            record_events=out is not None,
         )
     if out is not None:
         from sim.export import write_all
+        from sim.fit import write_events
 
         for path in write_all(out, result.sessions, result.decisions):
             print(f"dms: wrote {path}", file=sys.stderr)
+        print(f"dms: wrote {write_events(out / 'events.csv', result.events)}", file=sys.stderr)
     if as_json:
         _print_json(result.to_json())
     else:
@@ -265,6 +303,7 @@ def compare_command(
             min=1, max=100, help="Visits of each participant; every metric is also given per visit."
         ),
     ] = 1,
+    participants: ParticipantsOption = None,
     as_json: JsonOption = False,
 ) -> None:
     """Run two designs or choosers on the same participants; per metric, both means and
@@ -274,6 +313,7 @@ def compare_command(
 
     settings_a, raw_a = _design(design_a, rules_a)
     settings_b, raw_b = _design(design_b if design_b is not None else design_a, rules_b)
+    calibration = _calibration(participants)
     chosen = _seeds(seeds)
     runs = len(chosen) if chosen is not None else 1
     with _progress(2 * sessions * repeat * runs, "sessions (A, then B)") as told:
@@ -294,12 +334,54 @@ def compare_command(
             chooser_b=chooser_b,
             seeds=chosen,
             population=population,
+            calibration=calibration,
             repeat=repeat,
         )
     if as_json:
         _print_json(to_json(result))
     else:
         typer.echo(table(result))
+
+
+@app.command("fit")
+def fit_command(
+    events: Annotated[
+        Path | None,
+        typer.Argument(help="An events table: dms sessions export --events --format csv."),
+    ] = None,
+    db: DbOption = None,
+    since: Annotated[
+        str | None, typer.Option("--since", help="With --db: sessions from this date (ISO, UTC).")
+    ] = None,
+    out: Annotated[
+        Path, typer.Option("--out", help="The participants file to write (YAML).")
+    ] = Path("participants.yaml"),
+    bootstrap: Annotated[
+        int, typer.Option(min=50, max=100000, help="Resamples of the people.")
+    ] = 400,
+    seed: Annotated[int, typer.Option(help="Seed of the resampling.")] = 0,
+    as_json: JsonOption = False,
+) -> None:
+    """Estimate the simulated participants' inputs (delays, patience, speech, proactivity)
+    from recorded sessions, each with its bootstrap interval; write a participants file."""
+    from sim import fit
+
+    if (events is None) == (db is None):
+        raise typer.BadParameter("give an events table or --db (one of them)")
+    if events is not None:
+        rows, origin = fit.read_table(events), str(events)
+    else:
+        from memory.sessions_cli import read_events
+
+        rows, origin = read_events(db, since), "the database's sessions"
+    persons = fit.people(rows)
+    fitted = fit.fit(persons, bootstrap=bootstrap, seed=seed, origin=origin)
+    fit.write_participants(out, fitted, len(persons), origin)
+    print(f"dms: wrote {out}", file=sys.stderr)
+    if as_json:
+        _print_json({item.name: fit.entry(item) for item in fitted})
+        return
+    typer.echo(fit.table(fitted, len(persons)))
 
 
 @app.command("sensitivity")

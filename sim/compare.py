@@ -19,6 +19,7 @@ from typing import Any
 
 from dms.config import Settings
 from sim.baselines import ChooserName
+from sim.calibration import DEFAULT, Calibration
 from sim.population import Population
 from sim.prediction import Difference, bootstrap_ci, paired, paired_by_visit, run_seeds
 from sim.study import ProactivityLevel
@@ -58,6 +59,7 @@ def compare(
     chooser_b: ChooserName = "dms",
     seeds: Sequence[int] | None = None,
     population: Population = "paper",
+    calibration: Calibration = DEFAULT,
     repeat: int = 1,
 ) -> Comparison:
     """Run both sides on the same seeds and participants, each coming ``repeat`` times;
@@ -81,6 +83,7 @@ def compare(
                 settings,
                 chooser=chooser,
                 population=population,
+                calibration=calibration,
                 progress=told,
                 repeat=repeat,
             )

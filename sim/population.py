@@ -138,6 +138,7 @@ def paper_participant(
         proactivity=level,
         ask_by_name_rate=ask,
         answers={"how often should i start": INITIATIVE_ANSWER[level]},
+        decline_menu_rate=calibration.optional("decline_menu_rate"),
         speech=speech_habits(calibration),
         patience=patience(calibration),
         arrive_after_s=_span(calibration, "arrive_after_s"),

@@ -315,6 +315,8 @@ class StudyResult:
     decisions: list[DecisionRow] = field(default_factory=list)
     chooser: str = "dms"
     population: str = "paper"
+    events: list[dict[str, Any]] = field(default_factory=list)
+    """The sessions' interaction events (``record_events``), one row each."""
 
     def metric_values(self) -> dict[str, list[float | None]]:
         """Per metric, one value per session (None where the session has none: no
@@ -436,6 +438,7 @@ def run_study(
     record_decisions: bool = False,
     chooser: ChooserName = "dms",
     calibration: Calibration = DEFAULT,
+    record_events: bool = False,
 ) -> StudyResult:
     """Run the study on the virtual clock: ``sessions`` participants, each coming
     ``repeat`` times (all first visits, then all second visits...), each visit
@@ -444,7 +447,9 @@ def run_study(
     ``settings`` is used as given (see :func:`study_settings` for the paper's protocol).
     ``chooser`` picks the robot's own choices (:mod:`sim.baselines`); ``calibration``
     gives the inputs (:mod:`sim.calibration`). ``progress`` is told the number of
-    sessions done after each.
+    sessions done after each. ``record_events``: keep the sessions' interaction events
+    (:mod:`memory.interactions`, the table ``dms sessions export --events`` prints) in
+    :attr:`StudyResult.events`, read from the simulation's store before it is deleted.
     """
     wall = time.perf_counter()
     rng = random.Random(seed)
@@ -509,6 +514,7 @@ def run_study(
                 results.append(metrics)
                 if progress is not None:
                     progress(number)
+        events = _events(sim) if record_events else []
     return StudyResult(
         results,
         time.perf_counter() - wall,
@@ -519,7 +525,18 @@ def run_study(
         decision_rows,
         chooser,
         population,
+        events,
     )
+
+
+def _events(sim: Simulation) -> list[dict[str, Any]]:
+    """The interaction events the simulation's store holds, as ``dms sessions export
+    --events`` reads them (the simulated sessions' own table)."""
+    store, profiles = sim.stack.store, sim.controller.deps.profiles
+    if store is None or profiles is None:
+        return []
+    profiles.writer.flush()
+    return store.interaction_events()
 
 
 def _rank(sim: Simulation, person: Persona, metrics: SessionMetrics) -> None:

@@ -14,6 +14,7 @@ from motivation import MotivationModel
 
 if TYPE_CHECKING:  # the daemon opens its store and agenda after ready: not imported here
     from agenda import Agenda
+    from dms.interactions import InteractionLog
     from dms.profiles import ProfileService
     from dms.rules import LiveRules
     from memory import ActivityChooser, QuestionBank
@@ -39,6 +40,8 @@ class ControllerDeps:
     robot_state: Callable[[], Mapping[str, Any]] = dict
     scene: Scene | None = None
     """The frames behaviors aim at (the user's face, objects, the body); None: no gaze."""
+    interactions: InteractionLog | None = None
+    """Told what each tick did (its decisions and inputs): the sessions' interaction events."""
 
 
 @dataclass

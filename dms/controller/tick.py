@@ -164,7 +164,7 @@ class Controller:
             # Step 9's bookkeeping, after the sends of this tick: SessionAccount.on_tick.
             barrier.run("metrics", None, session.account.on_tick, now, self.deps.expression.pending)
         # Step 9. The record of this pass; the daemon publishes it and ticks again.
-        return self._record(now, urgent)
+        return self._record(now, urgent, snapshot)
 
     def _motivate(self, snapshot: InputSnapshot, now: datetime, monotonic: float) -> None:
         """Step the motivation model with what the robot perceives and does."""
@@ -308,10 +308,18 @@ class Controller:
 
     # ------------------------------------------------------------------ what the tick leaves
 
-    def _record(self, now: datetime, urgent: bool) -> TickRecord:
+    def _record(
+        self, now: datetime, urgent: bool, snapshot: InputSnapshot | None = None
+    ) -> TickRecord:
         decisions = tuple(self.log.decisions)
         self.counters.count_recorded(len(decisions))
         self._last = record = self.build_record(now, urgent, decisions)
+        interactions, session = self.deps.interactions, self.sessions.session
+        if interactions is not None:  # what happened, for the sessions' interaction events
+            user, key = (session.user_id, session.session_id) if session else (None, None)
+            inputs = [event.message for event in snapshot.events] if snapshot else []
+            observe = interactions.observe
+            self._barrier.run("interactions", None, observe, now, user, decisions, inputs, key)
         return record
 
     def build_record(

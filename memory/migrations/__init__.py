@@ -29,6 +29,7 @@ TABLES = (
     "feedback",
     "answers",
     "applied_writes",
+    "interaction_events",
 )
 
 HISTORY = SchemaHistory(HERE, VERSION_TABLE, TABLES, "memory.models")

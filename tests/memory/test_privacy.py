@@ -57,6 +57,9 @@ def _fill(store: ProfileStore, agenda: Agenda) -> None:
         store.record_feedback(user, "quiz", 1.0, NOW, write_id=f"{user}-feedback")  # as daemons do
         store.record_feedback(user, "dance", 0.2, NOW)
         store.record_answer(user, "favorite_music", "boleros", NOW)
+        store.record_interactions(
+            user, session, [{"seq": 0, "at": NOW, "event": "arrived"}], write_id=f"{user}-arrived"
+        )
         store.end_session(session, NOW + HOUR)
         agenda.add(ItemSpec(user_id=user, kind="reminder", text="Pills", every=3600), NOW)
         agenda.add(ItemSpec(user_id=user, kind="event", activity="quiz", at=NOW + 5 * HOUR), NOW)
