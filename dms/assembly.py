@@ -11,7 +11,6 @@ from __future__ import annotations
 import logging
 import math
 import random
-import uuid
 import zoneinfo
 from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
@@ -137,12 +136,9 @@ def interaction_log(profiles: ProfileService, min_confidence: float) -> Interact
     (each write once, by its id, also when replayed from the spool)."""
     from dms.interactions import InteractionLog
 
-    def write(user_id: str, session_key: str, events: list[dict[str, Any]]) -> None:
-        profiles.call(
-            "record_interactions", user_id, session_key, events, write_id=uuid.uuid4().hex
-        )
-
-    return InteractionLog(write, min_confidence, whole_sessions=not profiles.writer.threaded)
+    return InteractionLog(
+        profiles.record_interactions, min_confidence, whole_sessions=not profiles.writer.threaded
+    )
 
 
 def zone_of(timezone: str) -> zoneinfo.ZoneInfo:

@@ -20,7 +20,7 @@ from __future__ import annotations
 import logging
 import threading
 import uuid
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -196,6 +196,12 @@ class ProfileService:
     def record_initiative(self, user_id: str, took_initiative: bool, now: datetime) -> None:
         """Whether the user took the initiative when offered it (proactivity)."""
         self._once("record_initiative", (user_id, took_initiative, now))
+
+    def record_interactions(
+        self, user_id: str, session: str | int | None, events: Sequence[Mapping[str, Any]]
+    ) -> None:
+        """Interaction events of ``session`` (its key, or its id) (:mod:`memory.interactions`)."""
+        self._once("record_interactions", (user_id, session, [dict(e) for e in events]))
 
     def _once(self, op: StoreOp, args: tuple[Any, ...], kwargs: Mapping[str, Any] = {}) -> None:
         self.writer.submit(Write(op, args, {**kwargs, "write_id": uuid.uuid4().hex}))

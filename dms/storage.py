@@ -73,6 +73,7 @@ StoreOp = Literal[
     "record_answer",
     "record_interaction",
     "record_initiative",
+    "record_interactions",
 ]
 """What a :class:`Write` does: a :class:`memory.ProfileStore` method of that name (``find``
 is ``get`` without the error). :class:`dms.profiles.ProfileService` makes each one from a
