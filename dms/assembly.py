@@ -313,13 +313,17 @@ def open_store_and_agenda(
     if retrain:
         # Trained after ready (Stack.when_ready): even the seed personas' fit cost
         # the start 20-40 ms.
-        chooser = ActivityChooser(PreferenceModel.untrained(), store)
+        chooser = ActivityChooser(
+            PreferenceModel.untrained(), store, policy=settings.controller.chooser
+        )
     else:  # the simulator: trained here, so that a seeded run never depends on threads
         try:
             model = PreferenceModel.train(store)
         except (ProfileError, ValueError):
             model = PreferenceModel.from_seed()
-        chooser = ActivityChooser(model, store, retrain_every_s=math.inf)
+        chooser = ActivityChooser(
+            model, store, retrain_every_s=math.inf, policy=settings.controller.chooser
+        )
 
     def user_exists(user_id: str) -> bool:
         return profiles.met(user_id) or user_id in store.list_ids()

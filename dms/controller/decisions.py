@@ -93,8 +93,8 @@ def rule_why(component: str, result: Any) -> RuleWhy:
 
 
 def choice_why(excluded: Collection[str], draw: ChoiceDraw | None) -> ChoiceWhy:
-    """The draw that picked the robot's activity: the chooser's ``draw`` (novelty coin or
-    Thompson sampling); a draw not explained is another chooser's pick (a study's
+    """What picked the robot's activity: the chooser's ``draw`` (its ranking, or the
+    novelty coin or Thompson sampling); a draw not explained is another chooser's pick (a study's
     baseline, whose draws are its own); None, the entertainment manager's uniform one."""
     left_out = sorted(excluded) or None
     if draw is None or not draw.explained:
@@ -102,6 +102,13 @@ def choice_why(excluded: Collection[str], draw: ChoiceDraw | None) -> ChoiceWhy:
         candidates = [n for n in ENTERTAINMENT_ACTIVITIES if n not in excluded]
         return ChoiceWhy(
             by=by, candidates=candidates or list(ENTERTAINMENT_ACTIVITIES), excluded=left_out
+        )
+    if draw.ranking is not None:
+        return ChoiceWhy(
+            by="ranking",
+            candidates=list(draw.candidates),
+            excluded=left_out,
+            ranking=list(draw.ranking),
         )
     novelty = None
     if draw.novelty_draw is not None:

@@ -27,13 +27,14 @@ from sim.longterm import run_longterm
 from sim.study import run_study, study_settings
 
 STUDY = {
-    "dms": "6c83681947dc7dd314b471aa5e66b7d8b9810c469494448d73dd73539a78638f",
+    "dms": "3cff3fbc37b9079ae1c78e3bb55b6a8ed66d2c7474c7a4f9d01ded5356f30afa",
+    "explore": "6c83681947dc7dd314b471aa5e66b7d8b9810c469494448d73dd73539a78638f",
     "random": "e614783142be55131ffbe916d9232ee2569a1395e27cbfbc655c28a7f6632d39",
 }
 """Three participants of 30 minutes, seed 0, by the chooser that picks the robot's
 activities (a baseline's draws are its own: its decisions explain less)."""
 
-LONGTERM = "4f28f5bce3c335ca8584a064b8cd5a6fb3684af8b7e3be5a1b1894ddb82e9a07"
+LONGTERM = "dcbed605914a50cfc0c7be50f35dd86b1d13eff74a76cf0326c2ba90d7c3843f"
 """Three days of robot life with three users visiting, seed 0."""
 
 
