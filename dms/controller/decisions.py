@@ -57,12 +57,12 @@ class DecisionLog:
         now: datetime,
         why: Why | None = None,
     ) -> None:
-        """Note one decision; a cancel or failure explains itself by its ``detail``, a
-        motivated one by the drives."""
+        """Note one decision with its ``why``: the one given, else what was seen or
+        asked (:func:`evidence`); a motivated one also names the drives."""
         self.counters.count_decision(reason)
-        if why is None and action in ("cancel", "fail") and detail:
-            why = Why(evidence=detail)
-        if why is not None and why.motivation is None and reason.startswith("motivation"):
+        if why is None or not why.model_fields_set:
+            why = Why(evidence=evidence(action, activity, reason, detail))
+        if why.motivation is None and reason.startswith("motivation"):
             why = why.model_copy(update={"motivation": self.drives.why()})
         decision = Decision(
             tick=self.tick,
@@ -79,6 +79,30 @@ class DecisionLog:
         account = self.account()
         if account is not None:
             account.on_decision(decision, now)
+
+
+SEEN: dict[str, str] = {
+    "completed": "{activity} reported it had finished",
+    "user_choice": "the user chose {activity}",
+    "user_request": "a request to {action} {activity}",
+    "agenda": "an agenda item fell due",
+    "general_question": "a general question, to fill the user's profile",
+    "feedback": "asking how much the user liked {activity}",
+    "confirm_cancel": "the right shoulder was touched during {activity}",
+    "activity_error": "{activity} failed",
+    "activity_redirect": "{activity} was asked for by the activity before",
+    "user_left": "the user left",
+}
+"""What decided, by the decision's reason, when its caller gave no ``why`` of its own."""
+
+
+def evidence(action: str, activity: str | None, reason: str, detail: str | None) -> str:
+    """What decided a decision, in words: what its reason says was seen or asked (the
+    request, the agenda item, the question, the touch...), with its ``detail``."""
+    seen = SEEN.get(reason, reason.replace("_", " ")).format(
+        action=action, activity=activity or "the activity"
+    )
+    return f"{seen}: {detail}" if detail else seen
 
 
 def rule_why(component: str, result: Any) -> RuleWhy:

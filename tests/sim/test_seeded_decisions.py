@@ -27,14 +27,14 @@ from sim.longterm import run_longterm
 from sim.study import run_study, study_settings
 
 STUDY = {
-    "dms": "3cff3fbc37b9079ae1c78e3bb55b6a8ed66d2c7474c7a4f9d01ded5356f30afa",
-    "explore": "6c83681947dc7dd314b471aa5e66b7d8b9810c469494448d73dd73539a78638f",
-    "random": "e614783142be55131ffbe916d9232ee2569a1395e27cbfbc655c28a7f6632d39",
+    "dms": "5d8570beafad1ebe7ef2581d538c99f02aaf4c9a8f750bbeb87636d03ed7e618",
+    "explore": "7189a158508cdf1e04f291c501522ff9e11de28bf30a801c57ea886aa49ee281",
+    "random": "8c04351369d972bde4b3fa3ed75032f7b4c387ad4c19419dccdf9bf756eb0c2e",
 }
 """Three participants of 30 minutes, seed 0, by the chooser that picks the robot's
 activities (a baseline's draws are its own: its decisions explain less)."""
 
-LONGTERM = "dcbed605914a50cfc0c7be50f35dd86b1d13eff74a76cf0326c2ba90d7c3843f"
+LONGTERM = "1e5fdb3588e08daf2a218b439e3c9cc478d61c706b4b442c0016e5f660e62838"
 """Three days of robot life with three users visiting, seed 0."""
 
 
