@@ -59,7 +59,9 @@ def test_robot_choices_carry_the_mode_draw_the_preferences_and_the_drives() -> N
             assert decision.why.mode.draw is not None
             assert decision.why.mode.draw < decision.why.mode.p_user  # type: ignore[operator]
         cancels = [d.decision for d in sim.decisions if d.decision.action == "cancel"]
-        assert cancels and all(d.why and d.why.evidence == d.detail for d in cancels)
+        assert cancels and all(
+            d.why and d.detail and d.detail in (d.why.evidence or "") for d in cancels
+        )
 
 
 def test_a_rule_that_decides_is_named_with_its_file_and_line(tmp_path: Path) -> None:
