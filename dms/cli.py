@@ -211,7 +211,7 @@ def install_catalogue_of(behaviors: Path | None, config: Path | None) -> None:
     try:
         BehaviorLibrary.load(folder).install_catalogue()
     except BehaviorError as error:
-        where = "--behaviors" if behaviors is not None else f"{config or 'DMS_BEHAVIORS'}"
+        where = "--behaviors" if behaviors is not None else str(config or "DMS_BEHAVIORS__FOLDER")
         raise ConfigError(f"{where}: {error}") from None
 
 
