@@ -267,3 +267,20 @@ def test_behavior_check_refuses_an_unknown_robot_parameter_and_a_misspelt_medium
     assert "{env.humidity} binds to nothing: env has no parameter 'humidity' (one of time," in (
         bare.stdout
     )
+
+
+def test_a_request_to_pause_one_that_may_not_be_paused_is_logged_as_its_stop(
+    tmp_path: Path,
+) -> None:
+    stiff = GREET_AND_ASK.replace("expected_s: 60", "expected_s: 60\n  pausable: false")
+    folder = behaviors_folder(tmp_path, declared=stiff)
+    body = REMINDED.replace(
+        '  - {at: 3, agenda: {kind: reminder, user: ann, in_s: 5, text: "Time for your pills."}}',
+        "  - {at: 4, request: {action: pause, by: ann}}",
+    )
+    decisions = _run(_scenario(tmp_path, folder, body))
+    stops = [d for d in decisions if d["activity"] == "greet_and_ask" and d["action"] != "start"]
+    assert [(d["action"], d["reason"], d["detail"]) for d in stops][:1] == [
+        ("cancel", "user_request", "requested by ann; it cannot be paused: stopped")
+    ], decisions
+    assert not [d for d in decisions if d["action"] in ("pause", "resume")], decisions
