@@ -184,15 +184,17 @@ def build_stack(
     """
     rng = rng or random.Random(settings.seed)
     try:
+        library = BehaviorLibrary.load(settings.behaviors.folder)
+    except BehaviorError as error:
+        raise ConfigError(f"behaviors: {error}") from None
+    # the shipped activities and those the folder declares, in force before the
+    # motivation's drives name their behaviors (a declared relax activity may be one)
+    library.install_catalogue()
+    try:
         motivation = MotivationModel(load_config(settings.motivation), zone_of(settings.timezone))
     except MotivationConfigError as error:
         raise ConfigError(str(error)) from None
     hour = hour_in(settings.timezone)
-    try:
-        library = BehaviorLibrary.load(settings.behaviors.folder)
-    except BehaviorError as error:
-        raise ConfigError(f"behaviors: {error}") from None
-    library.install_catalogue()  # the shipped activities and those the folder declares
     rules: LiveRules | None = None
     if settings.rules.files:
         # The rules language (its parser) loads only for a robot that has rules files.

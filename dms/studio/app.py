@@ -43,6 +43,8 @@ from starlette.responses import FileResponse, Response
 from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
+from activities.known import known_media
+from activities.library import content_dirs
 from dms.kernel.body import JOINTS, NEUTRAL
 from dms.studio import placement
 from dms.studio.errors import StudioError
@@ -125,7 +127,8 @@ class Studio:
         """The simulated Mini's joints as posed by hand, until a trial moves it."""
 
     async def palette(self, _request: Request) -> Any:
-        return palette()
+        media = await run_in_threadpool(known_media, content_dirs(self.folder.directory))
+        return palette(media)
 
     async def behaviors(self, _request: Request) -> Any:
         return {
