@@ -161,6 +161,12 @@ class Reachy:
         """The head's 4x4 pose in Reachy's world frame (the neutral head origin)."""
         return self._call("get_current_head_pose")
 
+    def gravity_compensation(self, on: bool) -> None:
+        """The head's motors carrying only its weight (a hand moves it), or back to
+        holding their targets. The SDK's simulator takes the ask and keeps its motors as
+        they are (it has no motor modes)."""
+        self._call("enable_gravity_compensation" if on else "disable_gravity_compensation")
+
     def goto_sleep(self) -> None:
         self._call("goto_sleep")
 
