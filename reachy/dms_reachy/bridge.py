@@ -34,7 +34,7 @@ from typing import Any
 
 import zenoh
 
-from dms_reachy import body, by_hand, commands, gestures
+from dms_reachy import body, by_hand, commands, faces, gestures
 from dms_reachy.commands import Command
 from dms_reachy.motion import Mixer
 from dms_reachy.robot import Measured, Reachy, RobotGone
@@ -42,6 +42,8 @@ from dms_reachy.speech import Voice, words_seconds
 
 CONTROL_PERIOD_S = 0.02
 JOINTS_PERIOD_S = 0.1
+FACES_PERIOD_S = 0.2
+"""How often ``--faces`` publishes ``perception/user`` (a perception module's pace)."""
 RETRY_S = 1.0
 QUEUE_MAX = 256
 """Commands waiting for the control thread; past it the oldest is dropped (and said)."""
@@ -79,13 +81,16 @@ class Bridge:
         reachy: Reachy,
         voice: Voice | None = None,
         clock: Callable[[], float] = time.monotonic,
+        publish_faces: bool = False,
     ) -> None:
+        """``publish_faces``: publish the face the robot's daemon tracks as ``perception/user``."""
         self.robot_id = robot_id
         self.session = session
         self.reachy = reachy
         self.voice = voice or Voice()
         self.clock = clock
         self.mixer = Mixer()
+        self.presence = faces.Presence() if publish_faces else None
         self.connected = False
         self.asleep = False
         self._slept = False
@@ -178,7 +183,7 @@ class Bridge:
 
     def run(self, stop: threading.Event) -> None:
         """Drive the robot until ``stop`` is set; returns with the tokens withdrawn."""
-        deadline = next_joints = self.clock()
+        deadline = next_joints = next_faces = self.clock()
         next_try = deadline
         try:
             while not stop.is_set():
@@ -193,6 +198,9 @@ class Bridge:
                         if now >= next_joints:
                             next_joints = now + JOINTS_PERIOD_S
                             self._publish_joints()
+                        if self.presence is not None and now >= next_faces:
+                            next_faces = now + FACES_PERIOD_S
+                            self._publish_user(now)
                     except RobotGone as error:
                         self._lost(str(error))
                         next_try = self.clock() + RETRY_S
@@ -223,6 +231,13 @@ class Bridge:
             self.reachy.close()
             return
         self._told_away = False
+        if self.presence is not None:
+            try:
+                self.reachy.track_faces()
+            except RobotGone as error:
+                log(f"face tracking not started ({error}); retrying on the next connection")
+                self.reachy.close()
+                return
         # antennas folded past what the bridge uses: the robot is in the SDK's sleep pose
         # (its daemon put it to sleep); it stays so until a gesture, an aim or a wake_up
         folded = max(abs(measured.left), abs(measured.right)) > body.ANTENNA
@@ -511,6 +526,17 @@ class Bridge:
             encoding=zenoh.Encoding.APPLICATION_JSON,
         )
         self.stats["joints"] += 1
+
+    def _publish_user(self, now: float) -> None:
+        """``perception/user`` from the face the robot's daemon tracks (``--faces``)."""
+        assert self.presence is not None
+        found = self.reachy.tracked_face()
+        point = faces.face_position(*found, self.reachy.head_pose()) if found else None
+        self.session.put(
+            self.key("perception/user"),
+            json.dumps(self.presence.user(point, now)).encode(),
+            encoding=zenoh.Encoding.APPLICATION_JSON,
+        )
 
 
 def _arrived(measured: Measured, target: body.Posture) -> bool:

@@ -23,6 +23,7 @@ from typing import Any
 import pytest
 import zenoh
 
+from dms.kernel.messages import UserPerception
 from dms.reachy_cli import prepare
 from tests.integration.harness import (
     Collector,
@@ -396,6 +397,28 @@ def test_the_studio_records_the_pose_a_hand_gave_the_robot(setup: Setup, tmp_pat
     setup.status("pose-after", "done", timeout=WAIT_S)
     after = setup.probe.ask(op="measure")
     assert abs(after["body_yaw"]) < 0.05 and abs(after["yaw"]) < 0.05, after
+
+
+def test_with_faces_a_robot_without_a_camera_publishes_nobody_in_front(setup: Setup) -> None:
+    """``--faces`` asks the robot's daemon to track faces and publishes what it finds as
+    ``perception/user``: the simulator has no camera (its daemon says so), so nobody is
+    ever in front. (A face found is the pure mapping's, tested in tests/reachy/.)"""
+    users = Collector(setup.session, "robots/faces/perception/user")
+    mark = setup.sim.log.mark()
+    argv = [sys.executable, "-m", "dms.cli", "reachy", "--robot", "faces", "--faces"]
+    argv += ["--connect", f"tcp/127.0.0.1:{setup.daemon_port}"]
+    argv += ["--host", "127.0.0.1", "--port", str(setup.sim.port)]
+    bridge = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    log = StderrLines(bridge)
+    try:
+        setup.sim.log.wait_for("no camera available", start=mark, timeout=WAIT_S)
+        users.wait_count(5, timeout=WAIT_S)
+        assert all(UserPerception.model_validate(u).present is False for u in users.messages)
+        assert users.messages[0] == {"present": False}
+    finally:
+        bridge.terminate()
+        bridge.wait(20)
+    assert bridge.returncode == 0, log.lines
 
 
 def test_reachy_gone_is_reported_and_the_bridge_reconnects_when_it_returns(setup: Setup) -> None:
