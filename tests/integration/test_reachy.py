@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 import urllib.request
@@ -37,6 +38,7 @@ from tests.integration.harness import (
 )
 from tests.integration.test_ros2 import inet_sockets, off_loopback
 from tests.integration.test_studio import running_studio, shipped_copy
+from tests.integration.viewer_harness import CHROMIUM, CHROMIUM_ARGS, browser_missing
 
 pytestmark = [pytest.mark.integration, pytest.mark.timeout(300)]
 """A simulator start and a reconnection under a loaded CI take longer than the 120 s default."""
@@ -397,6 +399,53 @@ def test_the_studio_records_the_pose_a_hand_gave_the_robot(setup: Setup, tmp_pat
     setup.status("pose-after", "done", timeout=WAIT_S)
     after = setup.probe.ask(op="measure")
     assert abs(after["body_yaw"]) < 0.05 and abs(after["yaw"]) < 0.05, after
+
+
+@pytest.mark.skipif(browser_missing() is not None, reason=str(browser_missing()))
+def test_the_studio_page_s_box_poses_the_robot_and_record_takes_its_joints(
+    setup: Setup, tmp_path: Path
+) -> None:
+    """The page as a designer uses it, in Debian's Chromium: the box is offered (the
+    robot is a Reachy Mini), ticked it turns compensation on, Record shows the joints
+    the hand left, unticked it turns compensation off."""
+    from playwright.sync_api import expect, sync_playwright
+
+    connect = ("--connect", f"tcp/127.0.0.1:{setup.daemon_port}")
+    with (
+        running_studio(shipped_copy(tmp_path), connect) as studio,
+        sync_playwright() as playwright,
+    ):
+        browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        try:
+            page = browser.new_page()
+            page.goto(studio.url)
+            box = page.locator("#by-hand")
+            expect(box).to_be_enabled(timeout=WAIT_S * 1000)
+            mark = setup.bridge_log.mark()
+            box.check()
+            setup.bridge_log.wait_for("gravity compensation on", start=mark, timeout=WAIT_S)
+            expect(page.locator("#status")).to_contain_text("by hand")
+            expect(page.locator("#try-on")).to_have_value("daemon")
+            setup.probe.ask(op="move", body_yaw=-0.2, yaw=-0.5, pitch=-0.15)
+            want = {"hip": -0.2, "neck": -0.3, "head": -0.15}
+            setup.joints.wait_for(
+                lambda j: all(abs(j["positions"][k] - v) < HAND_RAD for k, v in want.items()),
+                start=setup.joints.mark(),
+                timeout=WAIT_S,
+            )
+            page.locator("#record-button").click()
+            status = page.locator("#status")
+            expect(status).to_contain_text("recorded pose:")
+            shown = dict(re.findall(r"(hip|neck|head) (-?\d+\.\d+)", status.inner_text()))
+            assert set(shown) == set(want), shown
+            for joint, angle in want.items():
+                assert abs(float(shown[joint]) - angle) < HAND_RAD + 0.005, shown
+            mark = setup.bridge_log.mark()
+            box.uncheck()
+            setup.bridge_log.wait_for("gravity compensation off", start=mark, timeout=WAIT_S)
+            expect(status).to_contain_text("holds its pose")
+        finally:
+            browser.close()
 
 
 def test_with_faces_a_robot_without_a_camera_publishes_nobody_in_front(setup: Setup) -> None:
