@@ -33,6 +33,7 @@ from tests.integration.harness import (
     client_session,
     free_port,
     put,
+    query,
     token_deleted,
     wait_token,
 )
@@ -399,6 +400,21 @@ def test_the_studio_records_the_pose_a_hand_gave_the_robot(setup: Setup, tmp_pat
     setup.status("pose-after", "done", timeout=WAIT_S)
     after = setup.probe.ask(op="measure")
     assert abs(after["body_yaw"]) < 0.05 and abs(after["yaw"]) < 0.05, after
+
+
+def test_a_lease_not_renewed_ends_by_hand_and_a_bad_ask_is_refused(setup: Setup) -> None:
+    """A studio gone without asking off (a closed tab) leaves the robot limp no longer
+    than its lease; an ask the bridge cannot read gets the reason back."""
+    mark = setup.bridge_log.mark()
+    [(ok, on)] = query(setup.session, "reachy/by_hand", {"on": True, "lease_s": 1})
+    assert ok and on["by_hand"] is True, on
+    setup.bridge_log.wait_for("gravity compensation on", start=mark, timeout=WAIT_S)
+    setup.bridge_log.wait_for("gravity compensation off", start=mark, timeout=WAIT_S)
+    assert query(setup.session, "reachy/by_hand") == [(True, {"by_hand": False, "lease_s": 0.0})]
+    [(ok, refused)] = query(setup.session, "reachy/by_hand", {"on": True, "lease_s": 600})
+    assert not ok and "lease_s" in refused["error"], refused
+    [(ok, refused)] = query(setup.session, "reachy/by_hand", b"[]")
+    assert not ok and "not a JSON object" in refused["error"], refused
 
 
 @pytest.mark.skipif(browser_missing() is not None, reason=str(browser_missing()))
