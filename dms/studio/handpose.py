@@ -25,8 +25,8 @@ KEY = "reachy/by_hand"
 """The bridge's queryable (``dms_reachy.by_hand.KEY``, in the bridge's own environment)."""
 LEASE_S = 10.0
 """How long one ask keeps compensation on; the page renews it every third of this."""
-ASK_TIMEOUT_S = 4.0
-"""The bridge answers once its control thread switched the motors (within 2 s)."""
+ASK_TIMEOUT_S = 5.0
+"""The bridge answers once its control thread switched the motors (within 3 s)."""
 MAX_BODY = 1024
 
 

@@ -58,8 +58,9 @@ SETTLE_S = 1.5
 """The longest an aim waits for the measured head to reach its target (a head held back
 by a hand, or by the daemon's own limits, is done after this all the same)."""
 ARRIVED_RAD = 0.03
-APPLY_WAIT_S = 2.0
-"""How long an ask to pose by hand waits for the control thread to switch the motors."""
+APPLY_WAIT_S = 3.0
+"""How long an ask to pose by hand waits for the control thread to switch the motors (a
+sleeping robot wakes first, which the SDK takes about two seconds over)."""
 MOVED_BY_HAND = "the robot is being posed by hand (the studio's Take the robot's pose)"
 
 

@@ -21,7 +21,15 @@ function stopRenewing() {
   renewal = null;
 }
 
-async function ask(on) {
+// One ask at a time, in order: a renewal still on its way never lands after an off.
+let asking = Promise.resolve();
+function ask(on) {
+  asking = asking.then(() => send(on));
+  return asking;
+}
+
+async function send(on) {
+  if (on && renewal === null && !box.checked) return null; // unticked while it waited
   const reply = await post("/api/robot/by-hand", { on });
   if (!reply.ok) {
     stopRenewing();
@@ -45,12 +53,21 @@ box.addEventListener("change", async () => {
   const state = await ask(true);
   if (!state) return;
   say("move the robot's head by hand, then Record", "good");
-  renewal = setInterval(() => ask(true), state.renew_s * 1000);
+  keepRenewing(state.renew_s);
 });
+
+function keepRenewing(seconds) {
+  stopRenewing();
+  renewal = setInterval(() => ask(true), seconds * 1000);
+}
 
 const state = await get("/api/robot/by-hand");
 box.disabled = !state.ok;
 label.title = state.ok
   ? "Turn the Reachy Mini's gravity compensation on: move its head by hand, then Record"
   : state.data.error;
-if (state.ok) box.checked = state.data.by_hand;
+if (state.ok && state.data.by_hand) {
+  // posed by hand from before this page (a reload): this page keeps it up, or ends it
+  box.checked = true;
+  keepRenewing(state.data.renew_s);
+}
