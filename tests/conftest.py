@@ -18,6 +18,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.processes import MODULE_OWNED, MODULE_THREADS
+
 GRACE_S = 3.0
 """How long a test's threads and children may take to end after it (a thread told to
 stop finishes its last step; a killed process is reaped): longer is a leak."""
@@ -42,6 +44,7 @@ def _threads() -> set[threading.Thread]:
         thread
         for thread in threading.enumerate()
         if thread.is_alive()
+        and thread not in MODULE_THREADS
         and not isinstance(thread, threading._DummyThread)
         and not thread.name.startswith(LOOP_EXECUTOR)
     }
@@ -95,10 +98,10 @@ def no_thread_or_process_left() -> Iterator[None]:
     deadline = time.monotonic() + GRACE_S
     for thread in _threads() - threads:
         thread.join(max(0.0, deadline - time.monotonic()))
-    for pid in _children() - children:
+    for pid in _children() - children - MODULE_OWNED:
         _wait_for_exit(pid, deadline - time.monotonic())
     left = sorted(thread.name for thread in _threads() - threads)
-    running = sorted(_children() - children)
+    running = sorted(_children() - children - MODULE_OWNED)
     problems = []
     if left:
         problems.append(f"threads still running: {', '.join(left)}")

@@ -312,8 +312,9 @@ class StderrLines:
         self.lines: list[str] = []
         self._cond = threading.Condition()
         self._ended = False
-        self._thread = threading.Thread(target=self._read, args=(process.stderr,), daemon=True)
-        self._thread.start()
+        self.reader = threading.Thread(target=self._read, args=(process.stderr,), daemon=True)
+        """The thread reading the output; it ends with the process."""
+        self.reader.start()
 
     def _read(self, stream: Iterable[str]) -> None:
         for line in stream:
@@ -352,6 +353,6 @@ class StderrLines:
     def text(self) -> str:
         """Every line so far (after the process ended: all of them)."""
         if self.process.poll() is not None:
-            self._thread.join(10.0)
+            self.reader.join(10.0)
         with self._cond:
             return "\n".join(self.lines)

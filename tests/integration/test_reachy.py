@@ -40,6 +40,7 @@ from tests.integration.harness import (
 from tests.integration.test_ros2 import inet_sockets, off_loopback
 from tests.integration.test_studio import running_studio, shipped_copy
 from tests.integration.viewer_harness import CHROMIUM, CHROMIUM_ARGS, browser_missing
+from tests.processes import owned_by_module
 
 pytestmark = [pytest.mark.integration, pytest.mark.timeout(300)]
 """A simulator start and a reconnection under a loaded CI take longer than the 120 s default."""
@@ -77,6 +78,7 @@ class Simulator:
             env=self.env,
         )
         self.log = StderrLines(self.proc)
+        owned_by_module(self.proc, self.log.reader)  # the module's, also when restarted
         self.log.wait_for("Application startup complete", timeout=WAIT_S)
 
     def kill(self) -> None:
@@ -300,10 +302,15 @@ def test_the_robot_sleeps_with_the_sleep_activity_and_wakes_after(setup: Setup) 
     asleep = setup.probe.ask(op="measure")
     # the SDK's sleep pose: antennas folded back (about 3 rad), head bowed
     assert asleep["left"] > 2.5 and asleep["right"] < -2.5, asleep
+    # the eyes closed and the lights dimmed (what the activity asks before it sleeps), so
+    # that no command of it is left unanswered while the bridge is away
+    lights = setup.command(lambda c: c["channel"] == "led", start)
+    setup.status(lights["id"], "done")
     # a bridge started while the robot sleeps leaves it asleep (its joints flowing)
     with token_deleted(setup.session, "robots/mini/alive/robot/feedback", timeout=WAIT_S):
         setup.stop_bridge()
     setup.bridge, setup.bridge_log = start_bridge(setup.daemon_port, setup.sim.port)
+    owned_by_module(setup.bridge, setup.bridge_log.reader)  # the module's bridge from now on
     wait_token(setup.session, "robots/mini/alive/robot/feedback", timeout=WAIT_S)
     mark = setup.joints.mark()
     setup.joints.wait_count(mark + 10, timeout=WAIT_S)  # a second of its control loop
@@ -509,6 +516,7 @@ def test_reachy_gone_is_reported_and_the_bridge_reconnects_when_it_returns(setup
     setup.errors.wait_for(lambda e: e["key"] == "robot" and "back online" in e["error"])
     setup.probe.close()  # its connection went with the old simulator
     setup.probe = Probe(setup.sim.python, setup.sim.port)
+    owned_by_module(setup.probe.proc)  # the module's probe from now on
     start = setup.commands.mark()
     setup.request("start", "presentation")
     wave = setup.command(lambda c: c["args"].get("name") == "wave", start, timeout=WAIT_S)
