@@ -11,6 +11,7 @@ from __future__ import annotations
 import glob
 import os
 import select
+import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -18,11 +19,19 @@ from pathlib import Path
 
 import pytest
 
-from tests.processes import MODULE_OWNED, MODULE_THREADS
-
 GRACE_S = 3.0
 """How long a test's threads and children may take to end after it (a thread told to
 stop finishes its last step; a killed process is reaped): longer is a leak."""
+
+
+def _module_owned() -> tuple[set[int], set[threading.Thread]]:
+    """The processes (and their output's readers) a module's fixture owns, as its tests
+    registered them in ``tests/processes.py`` (read from ``sys.modules``: a test session
+    that never imports it, such as the leak check's own inner sessions, has none)."""
+    processes = sys.modules.get("tests.processes")
+    if processes is None:
+        return set(), set()
+    return processes.MODULE_OWNED, processes.MODULE_THREADS
 
 
 LOOP_EXECUTOR = "asyncio_"
@@ -44,7 +53,7 @@ def _threads() -> set[threading.Thread]:
         thread
         for thread in threading.enumerate()
         if thread.is_alive()
-        and thread not in MODULE_THREADS
+        and thread not in _module_owned()[1]
         and not isinstance(thread, threading._DummyThread)
         and not thread.name.startswith(LOOP_EXECUTOR)
     }
@@ -98,10 +107,11 @@ def no_thread_or_process_left() -> Iterator[None]:
     deadline = time.monotonic() + GRACE_S
     for thread in _threads() - threads:
         thread.join(max(0.0, deadline - time.monotonic()))
-    for pid in _children() - children - MODULE_OWNED:
+    owned = _module_owned()[0]
+    for pid in _children() - children - owned:
         _wait_for_exit(pid, deadline - time.monotonic())
     left = sorted(thread.name for thread in _threads() - threads)
-    running = sorted(_children() - children - MODULE_OWNED)
+    running = sorted(_children() - children - owned)
     problems = []
     if left:
         problems.append(f"threads still running: {', '.join(left)}")
