@@ -57,7 +57,7 @@ def test_a_real_session_is_stored_with_its_metrics_and_read_back(tmp_path: Path)
         ann_from = decisions.mark()  # nothing is counted before her session: no user
         put(session, "perception/user", {"present": True, "user_id": "ann", "ready": True})
         states.wait_for(lambda s: (s["user"] or {}).get("id") == "ann")
-        for activity in ("jokes", "news"):
+        for activity in ("jokes", "cognitive_stimulation"):  # not a pick of the robot
             mark = decisions.mark()
             put(session, "request", {"action": "start", "activity": activity, "by": "app"})
             decisions.wait_for(

@@ -266,6 +266,8 @@ def test_a_link_planted_as_the_spools_bad_file_is_never_written_through(tmp_path
     spool.write_bytes(json.dumps(GOOD_LINES[0]).encode() + b"\n" + TORN["bad_utf8"])
     (tmp_path / "dms.db.mini.spool.bad").symlink_to(outside)
     with Running(tmp_path, db) as run:
+        told = run.errors.wait_for(lambda e: "unreadable line" in e["error"], timeout=SETTLE_S)
+        assert "no .bad file could be written" in told["error"]
         run.settled()
         assert run.daemon.terminate() == 0
     assert outside.read_bytes() == b"precious\n"
