@@ -101,7 +101,8 @@ class Choice:
         self.menu_again = False
         """The reminder cut the menu: it is offered again after it."""
         self.menu_offered: datetime | None = None
-        """When (steady time) the menu last started: ``menu_timeout_s`` counts from then."""
+        """When (steady time) the menu was first offered (offered again after a reminder,
+        it keeps its first time): ``menu_timeout_s`` counts from then."""
 
     # ------------------------------------------------------------------ steps 3 and 5: the user
 
@@ -238,7 +239,8 @@ class Choice:
 
     def _menu_unanswered(self, running: Running, now: datetime) -> bool:
         """End the menu if it has had no answer for ``menu_timeout_s`` (since it was
-        offered, or since the user last tried to answer); True if it ended.
+        first offered, a reminder in between or not, or since the user last tried to
+        answer); True if it ended.
 
         A user who does not answer counts in the session's ``user_not_answering`` and
         let the choice pass: the robot chooses next, as after "you choose".
@@ -456,7 +458,19 @@ class Choice:
         elif suspended is not None:
             self.runner.resume(suspended, "agenda", now, f"after the {what}")
         elif menu_again:
-            self._start("menu", "user_choice", "user", now, f"offered again after the {what}")
+            self._offer_menu_again(what, now)
+
+    def _offer_menu_again(self, what: str, now: datetime) -> None:
+        """After the reminder that cut it, the menu comes back for the rest of its time:
+        ``menu_timeout_s`` counts from its first offer, so that no reminder leaves the
+        user longer unanswered. Its time up, the robot chooses, as after no answer."""
+        first = self.menu_offered
+        steady = self.sessions.steady(now)
+        if first is not None and (steady - first).total_seconds() >= self.settings.menu_timeout_s:
+            self.sessions.left_to_robot(now, unanswered=True)
+            return
+        self._start("menu", "user_choice", "user", now, f"offered again after the {what}")
+        self.menu_offered = first or self.menu_offered
 
     def _forget_interrupted(self) -> None:
         """What a reminder interrupted does not come back (the user asked for something

@@ -236,6 +236,34 @@ def test_a_reminder_due_during_the_menu_is_said_and_the_menu_offered_again() -> 
         assert starts and starts[0].chosen_by == "user", decisions
 
 
+def test_a_menu_offered_again_after_a_reminder_keeps_the_time_of_its_first_offer() -> None:
+    with _sim(menu_timeout_s=30, **MENU_FIRST) as sim:
+        sim.run_for(1)
+        first = next(t.t for t in sim.decisions if t.decision.activity == "menu")
+        _remind(sim, 10)
+        again = _run_until_decision(sim, 20, "start", "menu")
+        assert again - first < 30
+        ended = _run_until_decision(sim, 40, "cancel", "menu")
+        assert ended - first <= 30.5, "never left longer than menu_timeout_s unanswered"
+        assert sim.controller.counters.unanswered == 1
+
+
+def test_a_menu_whose_time_ran_out_during_a_reminder_is_not_offered_again() -> None:
+    long_text = " ".join(["Time for your pills, with a glass of water, then rest."] * 8)
+    with _sim(menu_timeout_s=30, **MENU_FIRST) as sim:
+        sim.run_for(1)
+        first = next(t.t for t in sim.decisions if t.decision.activity == "menu")
+        _remind(sim, 10, text=long_text)
+        done = _run_until_decision(sim, 60, "complete", "notification")
+        assert done - first > 30, "the reminder outlasts the menu's time"
+        sim.run_for(1)
+        after = [t.decision for t in sim.decisions if t.t >= done and t.decision.action == "start"]
+        assert after and after[0].activity != "menu", after
+        assert after[0].chosen_by == "robot" and after[0].why is not None
+        assert after[0].why.mode is not None and after[0].why.mode.left_to_robot
+        assert sim.controller.counters.unanswered == 1
+
+
 def test_a_reminder_due_during_a_question_is_said_and_the_question_asked_again() -> None:
     with _sim(session_questions=1, question_timeout_s=15) as sim:
         said = _said(sim)
