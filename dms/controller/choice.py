@@ -4,10 +4,11 @@ Read this file first. The tick (``tick.py``) calls, in order:
 
 - :meth:`Choice.follow_user`: is a user ready? A session begins (step 5: the profile
   is loaded or created) or ends (the user left);
-- :meth:`Choice.follow_activity`: what the running activity did; after it, the robot
-  may ask how much the user liked it (step 7);
-- :meth:`Choice.check_cancel_reasons`: while an activity runs, the paper's four reasons
-  to cancel it, in order (step 2); a menu nobody answers ends here too;
+- :meth:`Choice.check_cancel_reasons`: while an activity runs, the paper's reasons to
+  cancel it, (a) to (c) in order (step 2); a menu nobody answers ends here too, as (d);
+- :meth:`Choice.follow_activity`: what the running activity did, unless a reason above
+  cancelled it: reason (d), it failed or asked for another; after it, the robot may ask
+  how much the user liked it (step 7);
 - :meth:`Choice.check_agenda_in_dialog`: while a question waits for its answer, a due
   agenda item interrupts it as reason (c) interrupts an activity;
 - :meth:`Choice.choose`: with nothing running, with no user the behavior of the dominant
@@ -208,9 +209,6 @@ class Choice:
                 if target:
                     self._start(target, "user_request", chosen_by, now, detail)
                 return
-        # a menu nobody answers ends: the user is not answering (the paper's Table 4)
-        if running.name == "menu" and self._menu_unanswered(running, now):
-            return
         # (c) a high-priority agenda item is due (reminders pause instead)
         for item in self.due_items(now):
             if running.paused or running.name == "notification":
@@ -235,7 +233,10 @@ class Choice:
                 self.sessions.record_activity(running, "stopped", now)
                 self._run_agenda_item(item, now)
                 return
-        # (d) the activity failed or redirected: follow_activity has seen to it
+        # (d) a menu nobody answers fails: the user is not answering (the paper's Table 4);
+        # an activity that failed or asked for another: follow_activity, next, sees to it
+        if running.name == "menu":
+            self._menu_unanswered(running, now)
 
     def _menu_unanswered(self, running: Running, now: datetime) -> bool:
         """End the menu if it has had no answer for ``menu_timeout_s`` (since it was
