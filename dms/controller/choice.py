@@ -269,6 +269,13 @@ class Choice:
         session = self.sessions.session
         if session is not None and self.sessions.perception_unknown():
             return  # the user may still be there: start nothing until perception says
+        if self.runner.blocked and self.runner.failing is not None:
+            # an output channel fails: only what the user asks for by name is tried until
+            # the next probe (no question, no menu, no pick of the robot's only to fail)
+            asked = self.requests.take()
+            if asked is not None and asked.target:
+                self._start(asked.target, "user_request", asked.chosen_by, now, asked.detail)
+            return
         if ready is None or session is None:
             # step 4: no user ready, the behavior of the dominant motivation (or a request)
             asked = self.requests.take()

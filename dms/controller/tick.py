@@ -350,6 +350,7 @@ class Controller:
             suspended=runner.published(runner.suspended),
             inputs=snapshot.status if snapshot is not None else {},
             robot_link="offline" if self.deps.expression.robot_offline else "ok",
+            failing_channel=runner.failing,
             motivation_state=self.drives.state,
             model=self.drives.model,
         )
