@@ -27,13 +27,13 @@ from sim.longterm import run_longterm
 from sim.study import run_study, study_settings
 
 STUDY = {
-    "dms": "6c83681947dc7dd314b471aa5e66b7d8b9810c469494448d73dd73539a78638f",
-    "random": "e614783142be55131ffbe916d9232ee2569a1395e27cbfbc655c28a7f6632d39",
+    "dms": "4bfa6389c8f5a63c6154279e5dfec351a64bec85496c3a378f86f51e3d9e5c09",
+    "random": "e0150b14d16ba0d77bd8b4fa695dfd5dde29a3998371cb8f2ca13b5cb71e2baa",
 }
 """Three participants of 30 minutes, seed 0, by the chooser that picks the robot's
 activities (a baseline's draws are its own: its decisions explain less)."""
 
-LONGTERM = "4f28f5bce3c335ca8584a064b8cd5a6fb3684af8b7e3be5a1b1894ddb82e9a07"
+LONGTERM = "c9dfa974f4598d5964605c82f6128879c86447fd0e83b1098856b0ee44d444c1"
 """Three days of robot life with three users visiting, seed 0."""
 
 
