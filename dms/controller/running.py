@@ -1,4 +1,5 @@
-"""The activity that runs, its managers, and the robot link that lets activities start.
+"""The activity that runs, its managers, and the robot link that lets activities start
+(offline, or with an output channel that keeps failing, starts back off).
 
 :class:`Runner` starts, pauses, resumes, cancels and follows activities through their
 managers and says so in the decision log; what to start and when is the choice's
@@ -101,12 +102,12 @@ class Runner:
         why: Why | None = None,
     ) -> bool:
         """Start ``name`` for ``user_id`` (None: nobody); False if it did not start."""
-        if self.blocked and self.failing is not None and reason == "user_request":
-            pass  # asked for by name: tried, the channel may work again (a probe the user paces)
-        elif self.blocked and self.failing is not None:
-            return False  # the channel fails: the robot waits for the next probe, in silence
-        elif self.blocked:
-            if chosen_by == "user" or reason == "user_request":  # said, never dropped silently
+        # A failing channel holds the robot's own starts until the next probe, in silence,
+        # but tries what the user asks for by name: she paces it, and it may work again.
+        if self.blocked and not (self.failing is not None and reason == "user_request"):
+            offline = self.failing is None
+            if offline and (chosen_by == "user" or reason == "user_request"):
+                # said, never dropped silently
                 self.log.decide(
                     "fail", name, "activity_error", chosen_by, "the robot is offline", now
                 )
@@ -255,7 +256,10 @@ class Runner:
         Offline (too many commands in a row not acknowledged), the robot starts nothing:
         an activity that only times out helps no one. Every so often one start is let
         through as a probe, the wait doubling from ``ack_timeout_s`` up to
-        ``offline_retry_max_s``; feedback or the robot's token ends it at once.
+        ``offline_retry_max_s``; feedback or the robot's token ends it at once. An output
+        channel that keeps failing (:attr:`failing`) backs off the same way, so that a
+        robot whose speech fails does not start and fail an activity every tick; a
+        command done on it ends it.
         """
         self.failing = self.deps.expression.failing_channel
         self.blocked = self._unreachable(monotonic)
