@@ -9,7 +9,8 @@ gestures...) are checked per file, by :mod:`activities.names`.
 
 A placeholder can be provided by a profile (``user``: a field of the profile model, an
 attribute the question bank fills or a ``set_param`` state sets; ``robot`` and ``env``:
-open, the daemon's ``params/robot`` and ``params/env`` may carry any name), the
+the parameters the daemon documents, :mod:`activities.known`; another name needs a
+default, as a free user attribute does, for a robot that does not publish it), the
 activity's ``args`` (not checked), a content file (``content.FILE...``:
 the file and its fields must exist) or a userdata key: declared in ``userdata``, or
 written by a state anywhere in the behavior (``set_data``, ``sample``, ``ask``,
@@ -20,6 +21,9 @@ its fields are known, and a misspelled field is found too. A default
 (``{user.name|my friend}``) is for a value not set yet (a key only some runs set, a free
 profile attribute); it does not excuse a misspelling: ``{user.nmae|there}`` would always
 say "there", so a name close to a known one is refused, default or not.
+
+A ``play_media`` whose ``file`` is a letter away from a medium the content files list
+is refused the same way (:func:`activities.known.media_problem`).
 """
 
 from __future__ import annotations
@@ -34,11 +38,12 @@ from typing import Any
 from activities.blocks import BLOCKS, holds_placeholder
 from activities.engine import read_content
 from activities.errors import BehaviorError
+from activities.known import PARAMETERS, known_media, media_problem
 from activities.spec import BehaviorSpec, StateSpec
 from activities.template import PLACEHOLDER, PROFILE_NAMESPACES, is_single_placeholder
 from memory.parameters import user_parameter_types
 
-OPEN_NAMESPACES = ("robot", "env", "args")
+OPEN_NAMESPACES = ("args",)
 """Namespaces whose names are not known before the run."""
 USER = "user"
 
@@ -156,9 +161,13 @@ ContentReader = Callable[[str], Any]
 class ContentShapes:
     """The shapes of the content files, each read once for all the behaviors checked."""
 
-    def __init__(self, read: ContentReader, names: Sequence[str]) -> None:
+    def __init__(
+        self, read: ContentReader, names: Sequence[str], media: Sequence[str] = ()
+    ) -> None:
         self.read = read
         self.names = tuple(names)
+        self.media = tuple(media)
+        """The media files the content files list (what ``play_media`` may name)."""
         self._files: dict[str, Shape | str] = {}
 
     def shape(self, name: str) -> Shape | str:
@@ -194,6 +203,11 @@ class Bindings:
             if len(parts) == 1 or parts[1] in self.user:
                 return ANYTHING
             return Missing(1, tuple(sorted(self.user)), "has no field " + repr(parts[1]))
+        known = PARAMETERS.get(head)
+        if known is not None:
+            if len(parts) == 1 or parts[1] in known:
+                return ANYTHING
+            return Missing(1, tuple(known), "has no parameter " + repr(parts[1]))
         if head == "content" and len(parts) >= 2:
             shape = self.content.shape(parts[1])
             if isinstance(shape, str):
@@ -322,6 +336,12 @@ def _message(path: str, missing: Missing, meant: str | None) -> str:
     hint = f"; did you mean {{{meant}}}?" if meant else ""
     if not meant and parts[0] == USER and missing.depth == 1:
         hint = f" (a free attribute: give a default, {{{path}|...}}, for users without it)"
+    if not meant and parts[0] in PARAMETERS and missing.depth == 1:
+        names = ", ".join(missing.names)
+        hint = (
+            f" (one of {names}; another the robot publishes needs a default, "
+            f"{{{path}|...}}, for a robot without it)"
+        )
     return f"{{{path}}} binds to nothing: {subject} {missing.reason}{hint}"
 
 
@@ -367,10 +387,22 @@ def placeholder_problems(specs: Mapping[str, BehaviorSpec], content: ContentShap
         collect_keys([specs[other].root for other in sorted(groups[name])], bind)
         where = str(spec.path or spec.name)
         for path, state in _states(spec.root):
-            for param, message in state_placeholder_problems(state, bind):
+            found = state_placeholder_problems(state, bind)
+            found.extend(state_media_problems(state, content.media))
+            for param, message in found:
                 line = state.param_lines.get(param, state.line)
                 problems.append(f"{where}:{line}: state {path}: {message}")
     return problems
+
+
+def state_media_problems(state: StateSpec, media: Sequence[str]) -> list[tuple[str, str]]:
+    """``(parameter, message)`` for a ``play_media`` whose written ``file`` is a
+    misspelling of a listed medium (a placeholder is known once bound)."""
+    file = state.params.get("file") if state.block == "play_media" else None
+    if not isinstance(file, str) or holds_placeholder(file):
+        return []
+    problem = media_problem(file, media)
+    return [] if problem is None else [("file", f"play_media: parameter 'file': {problem}")]
 
 
 def _linked(specs: Mapping[str, BehaviorSpec]) -> dict[str, set[str]]:
@@ -389,4 +421,4 @@ def content_shapes(dirs: Sequence[Path]) -> ContentShapes:
     """The content files of ``dirs`` as they are now (not the run's cache: a reload
     checks the files it will use)."""
     names = sorted({p.stem for d in dirs if d.is_dir() for p in d.glob("*.yaml")})
-    return ContentShapes(partial(read_content, tuple(dirs)), names)
+    return ContentShapes(partial(read_content, tuple(dirs)), names, known_media(dirs))

@@ -5,6 +5,11 @@ the daemon's file), and never create one: a SQLite file that does not exist is r
 The command line is an entry point, so it reads the system clock for ``now``. A running
 daemon loads a user's items again when it next perceives that user; to change the agenda
 of a running daemon at once, use its Zenoh queryable (docs/agenda.md).
+
+``add --event`` takes the activities the daemon knows: the shipped ones and those its
+behaviors folder declares (``--behaviors``, else the folder of ``--config`` and the
+``DMS_*`` variables, as ``dms run`` reads them). This package cannot read behavior
+files; the composition root wires the loader that does (:func:`use_catalogue_loader`).
 """
 
 from __future__ import annotations
@@ -13,6 +18,7 @@ import json
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from datetime import datetime
+from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import typer
@@ -25,6 +31,17 @@ from dms.kernel.clock import RealClock
 from memory.cli import existing_url, print_table
 
 app = typer.Typer(no_args_is_help=True)
+
+CatalogueLoader = Callable[[Path | None, Path | None], None]
+"""Put in force the catalogue of a behaviors folder (first) or a configuration file's
+folder (second); raises a DmsError with one line when either is wrong."""
+
+_catalogue_loader: list[CatalogueLoader] = []
+
+
+def use_catalogue_loader(loader: CatalogueLoader) -> None:
+    """Wire what loads the declared activities (the composition root, at import)."""
+    _catalogue_loader[:] = [loader]
 
 
 def _url(db: str | None) -> str:
@@ -118,12 +135,26 @@ def add_command(
     ] = "normal",
     lead: Annotated[int, typer.Option(help="Announce this many seconds early.")] = 0,
     grace: Annotated[int, typer.Option(help="Wait this many seconds for the user.")] = 600,
+    behaviors: Annotated[
+        Path | None,
+        typer.Option(
+            "--behaviors",
+            help="The daemon's behaviors folder: its declared activities are events too.",
+            show_default="the folder of --config",
+        ),
+    ] = None,
+    config: Annotated[
+        Path | None,
+        typer.Option("--config", help="The daemon's TOML file (as dms run --config)."),
+    ] = None,
     db: DbOption = None,
     as_json: JsonOption = False,
 ) -> None:
     """Add a reminder (--reminder TEXT) or an event (--event ACTIVITY)."""
     if (reminder is None) == (event is None):
         raise AgendaError("give exactly one of --reminder TEXT or --event ACTIVITY")
+    if event is not None and _catalogue_loader:
+        _catalogue_loader[0](behaviors, config)
     when: datetime | None = None
     if at is not None:
         try:

@@ -18,7 +18,7 @@ from agenda.errors import AgendaError
 from agenda.items import AgendaItem, ItemKind, ItemSpec, Occurrence, Outcome, Priority
 from agenda.models import ItemRow, OccurrenceRow
 from agenda.schedule import MAX_EVERY_S, Schedule, ScheduleKind, build, localize, zone
-from dms.kernel.activity_names import ACTIVITIES
+from dms.kernel.activity_names import ACTIVITIES, current
 from dms.kernel.ids import InvalidIdentifier, check_identifier
 
 MAX_LEAD_S = 86400
@@ -61,7 +61,7 @@ def validate(
         if not activity:
             raise AgendaError("an event needs an activity")
         if activity not in ACTIVITIES:
-            raise AgendaError(f"unknown activity {activity!r} (one of: {', '.join(ACTIVITIES)})")
+            raise AgendaError(current().unknown(activity))
         if text is not None:
             raise AgendaError("an event runs an activity and has no text")
     else:

@@ -184,15 +184,17 @@ def build_stack(
     """
     rng = rng or random.Random(settings.seed)
     try:
+        library = BehaviorLibrary.load(settings.behaviors.folder)
+    except BehaviorError as error:
+        raise ConfigError(f"behaviors: {error}") from None
+    # the shipped activities and those the folder declares, in force before the
+    # motivation's drives name their behaviors (a declared relax activity may be one)
+    library.install_catalogue()
+    try:
         motivation = MotivationModel(load_config(settings.motivation), zone_of(settings.timezone))
     except MotivationConfigError as error:
         raise ConfigError(str(error)) from None
     hour = hour_in(settings.timezone)
-    try:
-        library = BehaviorLibrary.load(settings.behaviors.folder)
-    except BehaviorError as error:
-        raise ConfigError(f"behaviors: {error}") from None
-    library.install_catalogue()  # the shipped activities and those the folder declares
     rules: LiveRules | None = None
     if settings.rules.files:
         # The rules language (its parser) loads only for a robot that has rules files.
@@ -313,13 +315,17 @@ def open_store_and_agenda(
     if retrain:
         # Trained after ready (Stack.when_ready): even the seed personas' fit cost
         # the start 20-40 ms.
-        chooser = ActivityChooser(PreferenceModel.untrained(), store)
+        chooser = ActivityChooser(
+            PreferenceModel.untrained(), store, policy=settings.controller.chooser
+        )
     else:  # the simulator: trained here, so that a seeded run never depends on threads
         try:
             model = PreferenceModel.train(store)
         except (ProfileError, ValueError):
             model = PreferenceModel.from_seed()
-        chooser = ActivityChooser(model, store, retrain_every_s=math.inf)
+        chooser = ActivityChooser(
+            model, store, retrain_every_s=math.inf, policy=settings.controller.chooser
+        )
 
     def user_exists(user_id: str) -> bool:
         return profiles.met(user_id) or user_id in store.list_ids()

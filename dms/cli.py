@@ -195,15 +195,39 @@ def _sessions() -> typer.Typer:
     return sessions_app
 
 
+def install_catalogue_of(behaviors: Path | None, config: Path | None) -> None:
+    """Put in force the activities a daemon would have: those of the ``behaviors``
+    folder, else of the folder ``config`` (and the DMS_* variables) name, as ``dms run``
+    loads them. For the commands that open the database or read the daemon's file
+    without a daemon (an event naming a declared activity, a declared relax drive)."""
+    from activities.errors import BehaviorError
+    from activities.library import BehaviorLibrary
+    from dms.config import load_config
+    from dms.kernel.errors import ConfigError
+
+    if behaviors is not None and not behaviors.is_dir():
+        raise ConfigError(f"--behaviors: {behaviors} is not a directory")
+    folder = behaviors if behaviors is not None else load_config(config).behaviors.folder
+    try:
+        BehaviorLibrary.load(folder).install_catalogue()
+    except BehaviorError as error:
+        where = "--behaviors" if behaviors is not None else str(config or "DMS_BEHAVIORS__FOLDER")
+        raise ConfigError(f"{where}: {error}") from None
+
+
 def _agenda() -> typer.Typer:
     from agenda.cli import app as agenda_app
+    from agenda.cli import use_catalogue_loader
 
+    use_catalogue_loader(install_catalogue_of)
     return agenda_app
 
 
 def _motivation() -> typer.Typer:
     from motivation.cli import app as motivation_app
+    from motivation.cli import use_catalogue_loader
 
+    use_catalogue_loader(install_catalogue_of)
     return motivation_app
 
 

@@ -180,6 +180,11 @@ class ControllerSettings(_Section):
     confirm_timeout_s: float = Field(10.0, gt=0.0)
     """How long the shoulder dialog waits for "continue" or "stop" before resuming."""
     question_timeout_s: float = Field(15.0, gt=0.0)
+    chooser: Literal["ranking", "explore"] = "ranking"
+    """How the robot picks an entertainment activity by itself: ``ranking``, the paper's
+    (the best of the user's predicted preferences not just done), or ``explore`` (now and
+    then an activity she never did, otherwise Thompson sampling: a better ranking learnt,
+    worse choices meanwhile; docs/simulation.md measures both)."""
     menu_timeout_s: float = Field(120.0, gt=0.0)
     """A menu of activities with no answer for this long ends: the user is not answering
     (a failure of the paper's Table 4) and the robot chooses. The value is assumed, not

@@ -83,6 +83,13 @@ def reachy(
         bool,
         typer.Option(help="Speak through the robot's speaker (espeak-ng); off: print speech."),
     ] = False,
+    faces: Annotated[
+        bool,
+        typer.Option(
+            help="Publish the face the robot's camera tracks as perception/user "
+            "(off: a perception module publishes it; docs/reachy.md)."
+        ),
+    ] = False,
     only_prepare: Annotated[
         bool,
         typer.Option("--prepare", help="Only make or update the bridge's environment, then exit."),
@@ -106,6 +113,8 @@ def reachy(
         argv += ["--zenoh-config", str(zenoh_config)]
     if media:
         argv.append("--media")
+    if faces:
+        argv.append("--faces")
     sys.stdout.flush()
     sys.stderr.flush()
     os.execv(argv[0], argv)

@@ -15,29 +15,11 @@ import typer
 from dms.kernel.errors import DmsError
 
 if TYPE_CHECKING:
-    from dms.rules.schema import ParameterSchema, TypeName
+    from dms.rules.schema import ParameterSchema
 
 app = typer.Typer(no_args_is_help=True)
 
 PROFILES = ("user", "robot", "env")
-
-ROBOT_PARAMETERS: dict[str, TypeName] = {
-    "batterylevel": "number",
-    "name": "string",
-    "currentroom": "string",
-    "currenttask": "string",
-    "obstacle": "boolean",
-    "voicevolume": "number",
-}
-"""Robot-profile parameters the daemon provides (the robot state and ``params/robot``)."""
-
-ENV_PARAMETERS: dict[str, TypeName] = {
-    "time": "number",
-    "noise_db": "number",
-    "light_lux": "number",
-    "currentbestpath": "boolean",
-}
-"""Environment parameters: ``time`` is the hour of day (0-23), the rest ``params/env``."""
 
 
 class ParamsError(DmsError, ValueError):
@@ -137,7 +119,9 @@ def eval_command(
 
 
 def daemon_schema() -> ParameterSchema:
-    """The parameters the daemon binds: user from the profile model, robot, env."""
+    """The parameters the daemon binds: user from the profile model, robot and env as
+    docs/contract.md lists them (the behaviors' placeholders read the same list)."""
+    from activities.known import ENV_PARAMETERS, ROBOT_PARAMETERS
     from dms.rules.schema import ParameterSchema
 
     try:
@@ -147,7 +131,11 @@ def daemon_schema() -> ParameterSchema:
     except ImportError as error:
         raise DmsError(f"cannot list the user parameters: {error}") from None
     return ParameterSchema.model_validate(
-        {"user": user_parameter_types(), "robot": ROBOT_PARAMETERS, "env": ENV_PARAMETERS}
+        {
+            "user": user_parameter_types(),
+            "robot": dict(ROBOT_PARAMETERS),
+            "env": dict(ENV_PARAMETERS),
+        }
     )
 
 

@@ -33,7 +33,7 @@ from collections.abc import Callable, Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from functools import cache
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
@@ -286,7 +286,18 @@ PRIOR_STRENGTH = 2.0
 concentration of its Beta prior on the user's liking)."""
 
 NOVELTY_PROBABILITY = 0.15
-"""Chance to pick an activity the user has never done, while there is one."""
+"""Chance to pick an activity the user has never done, while there is one (the
+``explore`` policy only)."""
+
+ChooserPolicy = Literal["ranking", "explore"]
+"""How the robot picks an activity by itself (``[controller] chooser``):
+
+- ``ranking``, the paper's: the best of the user's predicted ranking (expected liking,
+  from the features refined by her ratings, completions and stops) not just done;
+- ``explore``: with :data:`NOVELTY_PROBABILITY` an activity the user never did,
+  otherwise Thompson sampling from each belief, so that little-known activities get
+  tried. Beyond the paper: it learns a better ranking at the cost of worse choices
+  meanwhile (docs/paper.md)."""
 
 GRID: Vector = np.linspace(0.0125, 0.9875, 40)
 """The liking values (0..1) a belief is held on: the midpoints of 40 equal bins."""
@@ -351,17 +362,20 @@ class ChoiceDraw:
     pick); None when every candidate had been tried and no coin was tossed."""
     samples: Mapping[str, float] | None
     """Thompson sampling's draw of a liking per candidate (the highest won); None for a
-    novelty pick."""
+    novelty pick or a ranking's."""
     novelty_probability: float = NOVELTY_PROBABILITY
     """The novelty coin's threshold."""
     explained: bool = True
     """False for another chooser put in this one's place (a study's baseline): its
     draws are its own, and only ``activity`` and ``candidates`` say anything."""
+    ranking: tuple[str, ...] | None = None
+    """The ``ranking`` policy: the candidates by expected liking, best first (the first
+    won); None for a draw."""
 
     @property
     def novelty(self) -> bool:
         """The novelty coin picked: an untried activity, at random."""
-        return self.samples is None
+        return self.samples is None and self.ranking is None
 
 
 RETRAIN_EVERY_S = 600.0
@@ -387,9 +401,12 @@ class ActivityChooser:
         store: ProfileStore | None = None,
         retrain_every_s: float = RETRAIN_EVERY_S,
         start: Callable[[Callable[[], None]], threading.Thread] = _in_thread,
+        policy: ChooserPolicy = "ranking",
     ) -> None:
-        """``start`` runs a retraining off the caller's thread (tests may replace it)."""
+        """``start`` runs a retraining off the caller's thread (tests may replace it);
+        ``policy``: how :meth:`choose` picks (:data:`ChooserPolicy`)."""
         self.model = model
+        self.policy = policy
         self.store = store
         self.retrain_every_s = retrain_every_s
         self._start = start
@@ -502,12 +519,13 @@ class ActivityChooser:
     def choose(
         self, profile: Profile, rng: random.Random, exclude: Collection[str] = ()
     ) -> ChoiceDraw:
-        """One activity not in ``exclude``, with the draws that picked it (the decision's
-        ``why`` names them).
+        """One activity not in ``exclude``, with what picked it (the decision's ``why``
+        names it).
 
-        With probability :data:`NOVELTY_PROBABILITY` one the user never did; otherwise
-        the best of one draw from each belief (Thompson sampling, from the Beta of the
-        belief's mean and spread), so little-known activities still get tried and
+        ``ranking`` (the paper's): the best candidate by expected liking, ties at random.
+        ``explore``: with probability :data:`NOVELTY_PROBABILITY` one the user never did;
+        otherwise the best of one draw from each belief (Thompson sampling, from the Beta
+        of the belief's mean and spread), so little-known activities still get tried and
         favorites win as evidence grows.
         """
         # ``profile`` is the controller's cached one, kept current by the store's writer:
@@ -516,6 +534,9 @@ class ActivityChooser:
         every = list(beliefs)
         names = [name for name in every if name not in exclude] or every
         untried = [name for name in names if name not in profile.scores]
+        if self.policy == "ranking":
+            ranked = tuple(n for n in self.ranking(profile, rng) if n in names)
+            return ChoiceDraw(ranked[0], tuple(names), tuple(untried), None, None, ranking=ranked)
         coin = rng.random() if untried else None  # the novelty coin, only while one is untried
         if coin is not None and coin < NOVELTY_PROBABILITY:
             return ChoiceDraw(rng.choice(untried), tuple(names), tuple(untried), coin, None)

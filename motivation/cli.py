@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import zoneinfo
+from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import datetime, time, tzinfo
 from pathlib import Path
@@ -24,6 +25,19 @@ from dms.kernel.tomlfile import read_toml
 from motivation.config import MotivationConfig, MotivationConfigError, load_config
 
 app = typer.Typer(no_args_is_help=True)
+
+CatalogueLoader = Callable[[Path | None, Path | None], None]
+"""Put in force the activities of a daemon's TOML file's behaviors folder (second
+argument), as ``dms run`` does, so a drive may name a declared activity."""
+
+_catalogue_loader: list[CatalogueLoader] = []
+
+
+def use_catalogue_loader(loader: CatalogueLoader) -> None:
+    """Wire what loads the declared activities (the composition root; this package
+    cannot read behavior files)."""
+    _catalogue_loader[:] = [loader]
+
 
 MAX_HOURS = 60 * 24.0
 """Longest plot: 60 days (about 2 s of simulation and a very dense picture)."""
@@ -54,6 +68,8 @@ def read_daemon_file(path: Path | None) -> DaemonFile:
     timezone = data.get("timezone")
     if timezone is not None and not isinstance(timezone, str):
         raise ConfigError(f"{path}: timezone: must be a string such as 'Europe/Madrid'")
+    if _catalogue_loader:  # a drive may name an activity the file's behaviors declare
+        _catalogue_loader[0](None, path)
     try:
         return DaemonFile(load_config(table), timezone)
     except MotivationConfigError as error:

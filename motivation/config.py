@@ -9,6 +9,7 @@ fields, so ``[motivation.drives.rest] threshold = 70`` changes only the threshol
 
 from __future__ import annotations
 
+from difflib import get_close_matches
 from typing import Any, Literal, get_args, get_origin
 
 import annotated_types
@@ -38,8 +39,12 @@ class MotivationConfigError(ValueError):
 
 
 def _known_behavior(name: str) -> str:
+    """A drive's behavior is an activity of the catalogue in force: the shipped ones and
+    those the behaviors folder declares (the daemon installs it before reading this)."""
     if name not in ACTIVITIES:
-        raise ValueError(f"unknown behavior {name!r}; one of {', '.join(ACTIVITIES)}")
+        close = get_close_matches(name, list(ACTIVITIES), n=1)
+        hint = f"did you mean {close[0]}?" if close else f"one of {', '.join(ACTIVITIES)}"
+        raise ValueError(f"unknown behavior {name!r}; {hint}")
     return name
 
 

@@ -2,14 +2,18 @@
 
 ``dms sim study --chooser`` replaces what the robot picks when it chooses on its own
 (the controller asks its :class:`memory.ActivityChooser` ``choose``): the decision
-system's learned choice (``dms``), or a baseline that shows what the learning adds:
+system's learned choice as configured (``dms``: by default the paper's, the best of the
+predicted ranking), the same with its exploring policy (``explore``: novelty draws and
+Thompson sampling, ``[controller] chooser = "explore"``), or a baseline that shows what
+the learning adds:
 
 - ``random``: any activity, uniformly;
 - ``fixed``: the activities in a fixed cycle, the same for everyone;
 - ``popular``: the activity the learner's training data likes best that was not just
   done, the same for everyone (what a designer would ship without any learning);
 - ``greedy``: the daemon's own learned ranking, its best (expected liking) that was not
-  just done, with no random draw;
+  just done, with no random draw (the paper's policy, put in as a baseline: the same
+  picks as ``dms`` on its default settings);
 - ``least_liked``: the participant's true worst (a floor: it reads the hidden truth);
 - ``oracle``: the participant's true favourite (a ceiling: it reads the hidden truth).
 
@@ -30,13 +34,17 @@ from memory.preferences import ChoiceDraw
 from sim.adaptation import population_ranking
 
 if TYPE_CHECKING:
+    from dms.config import Settings
     from memory import ActivityChooser
     from memory.profile import Profile
     from sim.harness import Simulation
 
-ChooserName = Literal["dms", "random", "fixed", "popular", "greedy", "least_liked", "oracle"]
+ChooserName = Literal[
+    "dms", "explore", "random", "fixed", "popular", "greedy", "least_liked", "oracle"
+]
 CHOOSERS: tuple[ChooserName, ...] = (
     "dms",
+    "explore",
     "random",
     "fixed",
     "popular",
@@ -92,9 +100,19 @@ class BaselineChooser:
         return best[0] if self.name == "least_liked" else best[-1]
 
 
+def settings_for(settings: Settings, name: ChooserName) -> Settings:
+    """The study's settings for chooser ``name``: ``explore`` is the daemon's own chooser
+    with its exploring policy (``[controller] chooser``); the others leave them as given."""
+    if name != "explore":
+        return settings
+    controller = settings.controller.model_copy(update={"chooser": "explore"})
+    return settings.model_copy(update={"controller": controller})
+
+
 def install(sim: Simulation, name: ChooserName, truth: Truth, seed: int) -> None:
-    """Make ``sim``'s controller choose with ``name`` (``dms``: leave the daemon's)."""
-    if name == "dms":
+    """Make ``sim``'s controller choose with ``name`` (``dms`` and ``explore``: leave the
+    daemon's, as configured)."""
+    if name in ("dms", "explore"):
         return
     deps = sim.controller.deps
     if deps.chooser is None:

@@ -122,7 +122,9 @@ RulesOption = Annotated[
 ]
 
 
-ChooserOption = Literal["dms", "random", "fixed", "popular", "greedy", "least_liked", "oracle"]
+ChooserOption = Literal[
+    "dms", "explore", "random", "fixed", "popular", "greedy", "least_liked", "oracle"
+]
 PopulationOption = Literal["paper", "personas", "heldout"]
 
 

@@ -34,14 +34,23 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from dms.config import Settings
-from dms.kernel.activity_names import ACTIVITIES
+from dms.kernel.activity_names import ACTIVITIES, current
 from dms.kernel.messages import Decision, DmsState
 from dms.kernel.yamlfile import Path_
+from sim.errors import SpecError
 from sim.specfile import load_spec, read_yaml, validate
 
 SCENARIO_DIR = Path(__file__).parent / "scenarios"
 Seconds = Annotated[float, Field(ge=0.0, le=366 * 86400)]
 UserId = Annotated[str, Field(pattern=r"^[A-Za-z0-9_-]{1,64}$")]
+
+
+def _known_activity(value: str | None) -> str | None:
+    """An activity of the catalogue in force: the shipped ones and those the scenario's
+    behaviors folder declares (:func:`load_scenario` installs it before validating)."""
+    if value is not None and value not in ACTIVITIES:
+        raise ValueError(current().unknown(value))
+    return value
 
 
 class _Spec(BaseModel):
@@ -79,12 +88,7 @@ class RequestSpec(_Spec):
     activity: str | None = None
     by: str | None = "scenario"
 
-    @field_validator("activity")
-    @classmethod
-    def _known(cls, value: str | None) -> str | None:
-        if value is not None and value not in ACTIVITIES:
-            raise ValueError(f"unknown activity {value!r}")
-        return value
+    _known = field_validator("activity")(_known_activity)
 
 
 ParamValue = str | bool | int | float
@@ -105,12 +109,7 @@ class AgendaSpec(_Spec):
     activity: str | None = None
     priority: Literal["normal", "high"] = "normal"
 
-    @field_validator("activity")
-    @classmethod
-    def _known(cls, value: str | None) -> str | None:
-        if value is not None and value not in ACTIVITIES:
-            raise ValueError(f"unknown activity {value!r}")
-        return value
+    _known = field_validator("activity")(_known_activity)
 
 
 class VisitorSpec(_Spec):
@@ -351,17 +350,38 @@ def load_scenario(name_or_path: str | Path) -> LoadedScenario:
     """Load and validate a scenario; SpecError names file, line and field."""
     path = name_or_path if isinstance(name_or_path, Path) else scenario_path(name_or_path)
     data, lines = read_yaml(path)
+    _install_catalogue(data, lines, path)
     scenario = validate(Scenario, data, lines, str(path))
     for index, step in enumerate(scenario.timeline):
         if step.at > scenario.duration_s:
             line = lines.get(("timeline", index))
-            from sim.errors import SpecError
-
             raise SpecError(
                 f"{path}:{line}: timeline.{index}.at: {step.at:g} s is after duration_s "
                 f"{scenario.duration_s:g}"
             )
     return LoadedScenario(scenario=scenario, path=path, lines=lines)
+
+
+def _install_catalogue(data: Any, lines: dict[Path_, int], path: Path) -> None:
+    """Put in force the activities of the behaviors folder the scenario's settings name
+    (the shipped ones without one), as the simulated daemon will: its timeline and
+    expectations may name a declared activity. A folder that is missing or does not
+    load is refused with its first problem."""
+    from activities.errors import BehaviorError
+    from activities.library import BehaviorLibrary
+
+    settings = data.get("settings") if isinstance(data, dict) else None
+    behaviors = settings.get("behaviors") if isinstance(settings, dict) else None
+    folder = behaviors.get("folder") if isinstance(behaviors, dict) else None
+    where = Path(folder) if isinstance(folder, str) else None
+    line = lines.get(("settings", "behaviors", "folder"))
+    at = f"{path}:{line}" if line is not None else str(path)
+    if where is not None and not where.is_dir():
+        raise SpecError(f"{at}: settings.behaviors.folder: {where} is not a directory")
+    try:
+        BehaviorLibrary.load(where).install_catalogue()
+    except BehaviorError as error:
+        raise SpecError(f"{at}: settings.behaviors.folder: {error}") from None
 
 
 def shipped_scenarios() -> list[Path]:

@@ -63,7 +63,7 @@ from sim.adaptation import (
     population_ranking,
     predicted_ranking,
 )
-from sim.baselines import ChooserName, install
+from sim.baselines import ChooserName, install, settings_for
 from sim.calibration import DEFAULT, Calibration
 from sim.harness import Simulation, TimedDecision
 from sim.persona import INITIATIVE_ANSWER, Persona, Preferences, load_persona, shipped_personas
@@ -462,6 +462,7 @@ def run_study(
     results: list[SessionMetrics] = []
     decision_rows: list[DecisionRow] = []
     start = datetime(2026, 11, 23, 9, 0, tzinfo=UTC)
+    settings = settings_for(settings or Settings(), chooser)
     with Simulation(settings, seed=seed, start=start, launch_delay_s=launch) as sim:
         sim.idle_step_s = 10.0  # between participants nobody is there (see sim.harness)
         sim.robot.media_s = calibration.number("media_s")

@@ -161,10 +161,16 @@ class Choice:
     def _completed(self, running: Running, now: datetime, ask_feedback: bool) -> None:
         """Record a completed activity and, now and then, ask how much the user liked it."""
         counts = self.sessions.record_activity(running, "completed", now)
-        if counts and ask_feedback and self.rng.random() < self.settings.feedback_probability:
+        if not (counts and ask_feedback):
+            return
+        coin, chance = self.rng.random(), self.settings.feedback_probability
+        if coin < chance:
             steady = self.sessions.steady(now)
+            seen = f"{running.name} completed and the feedback coin {coin:.4f} fell under {chance}"
             self.dialogs.open(
-                feedback_dialog(running.name, steady, self.settings.question_timeout_s), now
+                feedback_dialog(running.name, steady, self.settings.question_timeout_s),
+                now,
+                Why(evidence=seen),
             )
 
     def _follow_redirect(self, running: Running, target: str, now: datetime) -> None:

@@ -57,12 +57,12 @@ class DecisionLog:
         now: datetime,
         why: Why | None = None,
     ) -> None:
-        """Note one decision; a cancel or failure explains itself by its ``detail``, a
-        motivated one by the drives."""
+        """Note one decision with its ``why``: the one given, else what was seen or
+        asked (:func:`evidence`); a motivated one also names the drives."""
         self.counters.count_decision(reason)
-        if why is None and action in ("cancel", "fail") and detail:
-            why = Why(evidence=detail)
-        if why is not None and why.motivation is None and reason.startswith("motivation"):
+        if why is None or not why.model_fields_set:
+            why = Why(evidence=evidence(action, activity, reason, detail))
+        if why.motivation is None and reason.startswith("motivation"):
             why = why.model_copy(update={"motivation": self.drives.why()})
         decision = Decision(
             tick=self.tick,
@@ -81,6 +81,30 @@ class DecisionLog:
             account.on_decision(decision, now)
 
 
+SEEN: dict[str, str] = {
+    "completed": "{activity} reported it had finished",
+    "user_choice": "the user chose {activity}",
+    "user_request": "a request to {action} {activity}",
+    "agenda": "an agenda item fell due",
+    "general_question": "a general question, to fill the user's profile",
+    "feedback": "asking how much the user liked {activity}",
+    "confirm_cancel": "the right shoulder was touched during {activity}",
+    "activity_error": "{activity} failed",
+    "activity_redirect": "{activity} was asked for by the activity before",
+    "user_left": "the user left",
+}
+"""What decided, by the decision's reason, when its caller gave no ``why`` of its own."""
+
+
+def evidence(action: str, activity: str | None, reason: str, detail: str | None) -> str:
+    """What decided a decision, in words: what its reason says was seen or asked (the
+    request, the agenda item, the question, the touch...), with its ``detail``."""
+    seen = SEEN.get(reason, reason.replace("_", " ")).format(
+        action=action, activity=activity or "the activity"
+    )
+    return f"{seen}: {detail}" if detail else seen
+
+
 def rule_why(component: str, result: Any) -> RuleWhy:
     """The rule that decided: the first ``activate`` that ran, and where it stands."""
     where = result.activated_at[0] if getattr(result, "activated_at", ()) else None
@@ -93,8 +117,8 @@ def rule_why(component: str, result: Any) -> RuleWhy:
 
 
 def choice_why(excluded: Collection[str], draw: ChoiceDraw | None) -> ChoiceWhy:
-    """The draw that picked the robot's activity: the chooser's ``draw`` (novelty coin or
-    Thompson sampling); a draw not explained is another chooser's pick (a study's
+    """What picked the robot's activity: the chooser's ``draw`` (its ranking, or the
+    novelty coin or Thompson sampling); a draw not explained is another chooser's pick (a study's
     baseline, whose draws are its own); None, the entertainment manager's uniform one."""
     left_out = sorted(excluded) or None
     if draw is None or not draw.explained:
@@ -102,6 +126,13 @@ def choice_why(excluded: Collection[str], draw: ChoiceDraw | None) -> ChoiceWhy:
         candidates = [n for n in ENTERTAINMENT_ACTIVITIES if n not in excluded]
         return ChoiceWhy(
             by=by, candidates=candidates or list(ENTERTAINMENT_ACTIVITIES), excluded=left_out
+        )
+    if draw.ranking is not None:
+        return ChoiceWhy(
+            by="ranking",
+            candidates=list(draw.candidates),
+            excluded=left_out,
+            ranking=list(draw.ranking),
         )
     novelty = None
     if draw.novelty_draw is not None:

@@ -25,6 +25,7 @@ from dms.controller.sessions import Sessions
 from dms.dialog import CONFIRM_STOP, Dialog, DialogKind, feedback_score
 from dms.dialog import SOURCE as DIALOG_SOURCE
 from dms.kernel.expression import ExpressionArbiter
+from dms.kernel.messages import Why
 from memory import Question
 
 
@@ -51,12 +52,13 @@ class Dialogs:
         """The dialog a reminder interrupted (and its general question), asked again
         after the reminder."""
 
-    def open(self, dialog: Dialog, now: datetime) -> None:
-        """Ask ``dialog``'s question in the user's style and note the decision to ask."""
+    def open(self, dialog: Dialog, now: datetime, why: Why | None = None) -> None:
+        """Ask ``dialog``'s question in the user's style and note the decision to ask
+        (``why``: what decided to ask, when the caller knows more than the question)."""
         self.dialog = dialog
         dialog.ask(self.expression, self.sessions.steady(now), self.sessions.style())
         activity = dialog.context.get("activity")
-        self.log.decide("ask", activity, dialog.kind.value, None, dialog.question, now)
+        self.log.decide("ask", activity, dialog.kind.value, None, dialog.question, now, why)
 
     def ask_question(self, question: Question, now: datetime) -> None:
         """Open a dialog on a general question of the question bank."""

@@ -127,10 +127,22 @@ class Runner:
         self.log.decide("start", name, reason, chosen_by, detail, now, why)
         return True
 
-    def pause(self, running: Running, reason: Reason, now: datetime, detail: str | None) -> None:
-        self.managers[running.manager].pause(now)
+    def pause(self, running: Running, reason: Reason, now: datetime, detail: str | None) -> bool:
+        """Pause ``running``; False when its manager stopped it instead (an activity
+        declared not pausable): then it is no longer current nor suspended, and the log
+        says it was cancelled, and why, so nothing resumes it."""
+        reply = self.managers[running.manager].pause(now)
+        if reply.status is ManagerStatus.CANCELLED:
+            if running is self.current:
+                self.current = None
+            elif running is self.suspended:
+                self.suspended = None
+            why = "; ".join(part for part in (detail, reply.detail) if part)
+            self.log.decide("cancel", running.name, reason, running.chosen_by, why, now)
+            return False
         running.set_paused(True)
         self.log.decide("pause", running.name, reason, running.chosen_by, detail, now)
+        return True
 
     def resume(self, running: Running, reason: Reason, now: datetime, detail: str | None) -> None:
         self.managers[running.manager].resume(now)
@@ -139,9 +151,10 @@ class Runner:
 
     def suspend(self, running: Running, reason: Reason, now: datetime, detail: str) -> None:
         """Pause the current ``running`` for a reminder: it waits as the suspended
-        activity, and nothing is current until the reminder starts."""
-        self.pause(running, reason, now, detail)
-        self.suspended, self.current = running, None
+        activity (one that cannot be paused is stopped: nothing waits), and nothing is
+        current until the reminder starts."""
+        if self.pause(running, reason, now, detail):
+            self.suspended, self.current = running, None
 
     def set_aside(self) -> None:
         """A reminder interrupts a dialog: the current activity (paused for "continue or

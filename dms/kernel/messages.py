@@ -381,7 +381,7 @@ class RuleWhy(Outbound):
     activate: list[str] = Field(default_factory=list)
 
 
-DrawKind = Literal["novelty", "sampling", "random", "chooser"]
+DrawKind = Literal["ranking", "novelty", "sampling", "random", "chooser"]
 """What picked the robot's activity among its candidates (docs/contract.md ``why``)."""
 
 
@@ -397,7 +397,7 @@ class NoveltyWhy(Outbound):
 class ChoiceWhy(_OmitsUnset):
     """Which random draw picked the robot's activity, and among what."""
 
-    _OPTIONAL = ("novelty", "samples", "excluded")
+    _OPTIONAL = ("novelty", "samples", "excluded", "ranking")
 
     by: DrawKind
     candidates: list[str]
@@ -408,6 +408,8 @@ class ChoiceWhy(_OmitsUnset):
     """The novelty coin, when one was tossed (some candidate never done)."""
     samples: dict[str, float] | None = None
     """Thompson sampling: one liking drawn from each candidate's belief; the highest won."""
+    ranking: list[str] | None = None
+    """The predicted ranking of the candidates, best first: the first won (``by: ranking``)."""
 
 
 class Why(_OmitsUnset):

@@ -43,10 +43,13 @@ from starlette.responses import FileResponse, Response
 from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
+from activities.known import known_media
+from activities.library import content_dirs
 from dms.kernel.body import JOINTS, NEUTRAL
 from dms.studio import placement
 from dms.studio.errors import StudioError
 from dms.studio.folder import Folder
+from dms.studio.handpose import HandPose
 from dms.studio.link import DaemonLink
 from dms.studio.palette import palette
 from dms.studio.rules import RulesFiles
@@ -125,7 +128,8 @@ class Studio:
         """The simulated Mini's joints as posed by hand, until a trial moves it."""
 
     async def palette(self, _request: Request) -> Any:
-        return palette()
+        media = await run_in_threadpool(known_media, content_dirs(self.folder.directory))
+        return palette(media)
 
     async def behaviors(self, _request: Request) -> Any:
         return {
@@ -314,6 +318,7 @@ def create_app(
     async def index(_request: Request) -> Response:
         return FileResponse(STATIC / "index.html", headers={"Cache-Control": "no-store"})
 
+    hand = HandPose(studio.link)
     return Starlette(
         routes=[
             Route("/", index),
@@ -330,6 +335,8 @@ def create_app(
             Route("/api/try/marker", api(studio.try_marker), methods=["POST"]),
             Route("/api/robot", api(studio.robot)),
             Route("/api/robot/pose", api(studio.pose), methods=["POST"]),
+            Route("/api/robot/by-hand", api(hand.state)),
+            Route("/api/robot/by-hand", api(hand.switch), methods=["POST"]),
             Route("/api/body", api(studio.body_limits)),
             Route("/api/frames", api(studio.frames)),
             Route("/api/daemon/try", api(studio.daemon_try), methods=["POST"]),

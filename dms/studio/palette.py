@@ -5,11 +5,14 @@ Made at run time from the published JSON Schema of behavior files
 touching it. A block's category is the module it is written in (``speech``,
 ``expression``, ...), the containers are one more. A parameter that names something of
 the robot's repertoire (a gesture, an LED pattern, a face) gets the repertoire as its
-``choices``: the page offers them in a list, as the loader accepts only them.
+``choices``: the page offers them in a list, as the loader accepts only them. A
+``play_media``'s ``file`` gets the media the content files list as ``suggestions``: the
+page offers them and still takes another name (the robot may hold more).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 from activities.blocks import BLOCKS
@@ -36,13 +39,19 @@ def _category(block: str) -> str:
     return BLOCKS[block].__module__.rsplit(".", 1)[-1]
 
 
-def palette() -> dict[str, Any]:
+SUGGESTED: dict[tuple[str, str], str] = {("play_media", "file"): "media"}
+"""(block, parameter): the list of names it is offered from (free text still allowed)."""
+
+
+def palette(media: Sequence[str] = ()) -> dict[str, Any]:
     """``{"categories": [{"name", "title", "blocks": [...]}, ...], "top": schema}``.
 
     Each block has its ``name``, ``doc``, ``outcomes`` (those of a state with its
     defaults; some blocks' depend on their parameters), ``container`` (whether it holds
     ``states`` or one ``state``) and ``schema`` (its parameters, as a file writes them).
+    ``media``: the files offered for ``play_media`` (those the folder's content lists).
     """
+    lists = {"media": list(media)}
     schema = json_schema()
     by_category: dict[str, list[dict[str, Any]]] = {}
     for variant in schema["$defs"]["state"]["oneOf"]:
@@ -52,6 +61,9 @@ def palette() -> dict[str, Any]:
         for (named_block, param), (_what, repertoire) in NAMED.items():
             if named_block == block and param in props:
                 props[param] = {**props[param], "choices": list(repertoire)}
+        for (named_block, param), which in SUGGESTED.items():
+            if named_block == block and param in props and lists[which]:
+                props[param] = {**props[param], "suggestions": lists[which]}
         holds = "states" if "states" in props else "state" if "state" in props else None
         outcomes = list(BLOCKS[block].OUTCOMES) if block in BLOCKS else []
         by_category.setdefault(_category(block), []).append(

@@ -39,6 +39,12 @@ def parse(argv: Sequence[str]) -> argparse.Namespace:
         action="store_true",
         help="use the robot's speaker (speech through espeak-ng); off: speech is printed",
     )
+    parser.add_argument(
+        "--faces",
+        action="store_true",
+        help="publish the face the robot's camera tracks as perception/user (off: a "
+        "perception module publishes it)",
+    )
     return parser.parse_args(list(argv))
 
 
@@ -93,7 +99,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"dms reachy: cannot reach the daemon over Zenoh {connect}: {reason}", file=sys.stderr
         )
         return 1
-    bridge = Bridge(args.robot, session, Reachy(args.host, args.port, media=args.media))
+    reachy = Reachy(args.host, args.port, media=args.media)
+    bridge = Bridge(args.robot, session, reachy, publish_faces=args.faces)
     try:
         bridge.listen()
         where = f"{args.host}:{args.port}"

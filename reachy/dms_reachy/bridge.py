@@ -4,6 +4,7 @@ It is the daemon's robot (``dms run --robot zenoh``): it executes each ``robot/c
 and answers on ``robot/feedback`` (``started``, then ``done``, ``interrupted`` or
 ``failed``), publishes the measured head on ``robot/joints`` ten times a second, and
 declares ``alive/robot/feedback`` and ``alive/robot/joints`` while Reachy Mini answers.
+It also answers the studio's asks to pose the robot by hand (:mod:`dms_reachy.by_hand`).
 
 One control thread (:meth:`Bridge.run`) owns the SDK: every 20 ms it takes the commands
 that came, steps the :class:`~dms_reachy.motion.Mixer` and sends the posture. Zenoh's
@@ -18,6 +19,7 @@ Reachy answers, the tokens are back and the daemon at once treats the robot as o
 
 from __future__ import annotations
 
+import contextlib
 import heapq
 import json
 import math
@@ -32,7 +34,7 @@ from typing import Any
 
 import zenoh
 
-from dms_reachy import body, commands, gestures
+from dms_reachy import body, by_hand, commands, faces, gestures
 from dms_reachy.commands import Command
 from dms_reachy.motion import Mixer
 from dms_reachy.robot import Measured, Reachy, RobotGone
@@ -40,6 +42,8 @@ from dms_reachy.speech import Voice, words_seconds
 
 CONTROL_PERIOD_S = 0.02
 JOINTS_PERIOD_S = 0.1
+FACES_PERIOD_S = 0.2
+"""How often ``--faces`` publishes ``perception/user`` (a perception module's pace)."""
 RETRY_S = 1.0
 QUEUE_MAX = 256
 """Commands waiting for the control thread; past it the oldest is dropped (and said)."""
@@ -54,6 +58,10 @@ SETTLE_S = 1.5
 """The longest an aim waits for the measured head to reach its target (a head held back
 by a hand, or by the daemon's own limits, is done after this all the same)."""
 ARRIVED_RAD = 0.03
+APPLY_WAIT_S = 3.0
+"""How long an ask to pose by hand waits for the control thread to switch the motors (a
+sleeping robot wakes first, which the SDK takes about two seconds over)."""
+MOVED_BY_HAND = "the robot is being posed by hand (the studio's Take the robot's pose)"
 
 
 def log(line: str) -> None:
@@ -74,13 +82,16 @@ class Bridge:
         reachy: Reachy,
         voice: Voice | None = None,
         clock: Callable[[], float] = time.monotonic,
+        publish_faces: bool = False,
     ) -> None:
+        """``publish_faces``: publish the face the robot's daemon tracks as ``perception/user``."""
         self.robot_id = robot_id
         self.session = session
         self.reachy = reachy
         self.voice = voice or Voice()
         self.clock = clock
         self.mixer = Mixer()
+        self.presence = faces.Presence() if publish_faces else None
         self.connected = False
         self.asleep = False
         self._slept = False
@@ -96,6 +107,11 @@ class Bridge:
         self._handles: list[Any] = []
         self._tokens: list[Any] = []
         self._told_away = False
+        self._lease = by_hand.Lease()
+        self._switched = threading.Condition(self._lock)
+        self.by_hand = False
+        """True while the head's motors are in gravity compensation (the control
+        thread's to change, under the lock)."""
         self.stats = {"commands": 0, "feedback": 0, "joints": 0, "connections": 0}
 
     def key(self, suffix: str) -> str:
@@ -108,6 +124,9 @@ class Bridge:
             self.session.declare_subscriber(self.key("robot/command"), self._on_command)
         )
         self._handles.append(self.session.declare_subscriber(self.key("dms/state"), self._on_state))
+        self._handles.append(
+            self.session.declare_queryable(self.key(by_hand.KEY), self._on_by_hand)
+        )
 
     def _on_command(self, sample: zenoh.Sample) -> None:
         try:
@@ -125,6 +144,32 @@ class Bridge:
                 self._queue.popleft()
                 self._dropped += 1
 
+    def _on_by_hand(self, query: zenoh.Query) -> None:
+        """An ask to pose by hand: answered once the control thread has switched."""
+        try:
+            raw = query.payload.to_bytes() if query.payload is not None else None
+            ask = by_hand.parse(raw)
+        except by_hand.BadAsk as error:
+            query.reply_err(json.dumps({"error": str(error)}).encode())
+            return
+        with self._lock:
+            if not self.connected:
+                reply: dict[str, Any] = {"error": f"Reachy Mini at {self.reachy.where} unreachable"}
+            else:
+                self._lease.take(ask, self.clock())
+                wanted = self._lease.wanted(self.clock())
+                self._switched.wait_for(
+                    lambda: self.by_hand == wanted or not self.connected, APPLY_WAIT_S
+                )
+                if self.by_hand != wanted:
+                    reply = {"error": "Reachy Mini did not switch its motors in time; ask again"}
+                else:
+                    reply = {"by_hand": self.by_hand, "lease_s": self._lease.left(self.clock())}
+        if "error" in reply:
+            query.reply_err(json.dumps(reply).encode())
+        else:
+            query.reply(query.key_expr, json.dumps(reply).encode())
+
     def _on_state(self, sample: zenoh.Sample) -> None:
         try:
             state = json.loads(sample.payload.to_bytes())
@@ -139,7 +184,7 @@ class Bridge:
 
     def run(self, stop: threading.Event) -> None:
         """Drive the robot until ``stop`` is set; returns with the tokens withdrawn."""
-        deadline = next_joints = self.clock()
+        deadline = next_joints = next_faces = self.clock()
         next_try = deadline
         try:
             while not stop.is_set():
@@ -149,10 +194,14 @@ class Bridge:
                     next_try = now + RETRY_S
                 if self.connected:
                     try:
+                        self._switch_by_hand(now)
                         self._tick(now)
                         if now >= next_joints:
                             next_joints = now + JOINTS_PERIOD_S
                             self._publish_joints()
+                        if self.presence is not None and now >= next_faces:
+                            next_faces = now + FACES_PERIOD_S
+                            self._publish_user(now)
                     except RobotGone as error:
                         self._lost(str(error))
                         next_try = self.clock() + RETRY_S
@@ -163,6 +212,9 @@ class Bridge:
                     deadline = self.clock() + CONTROL_PERIOD_S
                 stop.wait(max(0.0, deadline - self.clock()))
         finally:
+            if self.by_hand and self.connected:  # never left limp by a bridge that stops
+                with contextlib.suppress(RobotGone):
+                    self.reachy.gravity_compensation(False)
             self._withdraw_tokens()
             for handle in self._handles:
                 handle.undeclare()
@@ -180,6 +232,13 @@ class Bridge:
             self.reachy.close()
             return
         self._told_away = False
+        if self.presence is not None:
+            try:
+                self.reachy.track_faces()
+            except RobotGone as error:
+                log(f"face tracking not started ({error}); retrying on the next connection")
+                self.reachy.close()
+                return
         # antennas folded past what the bridge uses: the robot is in the SDK's sleep pose
         # (its daemon put it to sleep); it stays so until a gesture, an aim or a wake_up
         folded = max(abs(measured.left), abs(measured.right)) > body.ANTENNA
@@ -202,6 +261,9 @@ class Bridge:
         self._withdraw_tokens()
         with self._lock:
             self.connected = False
+            self._lease = by_hand.Lease()
+            self.by_hand = False  # the robot's daemon resets its motors on a new client
+            self._switched.notify_all()
             running = self.mixer.running() + [command_id for _, command_id in self._timed]
             running += list(self._settling)
             # acknowledged while it was there, not carried out: failed, not left waiting
@@ -263,7 +325,7 @@ class Bridge:
                     done.append(command_id)
         while self._timed and self._timed[0][0] <= now:
             done.append(heapq.heappop(self._timed)[1])
-        if not self.asleep:
+        if not self.asleep and not self.by_hand:
             self.reachy.send(posture)
         for command_id in done:
             self._feedback(command_id, "done")
@@ -282,6 +344,9 @@ class Bridge:
             "screen": self._screen,
             "media": self._media,
         }[command.channel]
+        if self.by_hand and command.channel in ("motion", "aim"):
+            self._feedback(command.id, "failed", MOVED_BY_HAND)
+            return
         problem = handler(command, now)
         if problem is not None:
             self._feedback(command.id, "failed", problem)
@@ -393,6 +458,31 @@ class Bridge:
         heapq.heappush(self._timed, (now + seconds, command.id))
         return None
 
+    # -- posed by hand -----------------------------------------------------------------
+
+    def _switch_by_hand(self, now: float) -> None:
+        """Turn gravity compensation on or off as the lease says. On, what moves the
+        robot stops (the hand moves it); off, the robot holds where the hand left it."""
+        with self._lock:
+            wanted = self._lease.wanted(now)
+        if wanted == self.by_hand:
+            return
+        if wanted:
+            self._wake(now)
+            with self._lock:
+                ended = self.mixer.hold(self.mixer.stance, now)
+            for command_id in ended:
+                self._feedback(command_id, "interrupted")
+        self.reachy.gravity_compensation(wanted)
+        if not wanted:
+            measured = self.reachy.measure()
+            with self._lock:
+                self.mixer.hold(measured.posture(), self.clock())
+        with self._lock:
+            self.by_hand = wanted
+            self._switched.notify_all()
+        log(f"gravity compensation {'on: posed by hand' if wanted else 'off: holding the pose'}")
+
     # -- sleep and wake ----------------------------------------------------------------
 
     def _sleep(self, now: float) -> None:
@@ -437,6 +527,17 @@ class Bridge:
             encoding=zenoh.Encoding.APPLICATION_JSON,
         )
         self.stats["joints"] += 1
+
+    def _publish_user(self, now: float) -> None:
+        """``perception/user`` from the face the robot's daemon tracks (``--faces``)."""
+        assert self.presence is not None
+        found = self.reachy.tracked_face()
+        point = faces.face_position(*found, self.reachy.head_pose()) if found else None
+        self.session.put(
+            self.key("perception/user"),
+            json.dumps(self.presence.user(point, now)).encode(),
+            encoding=zenoh.Encoding.APPLICATION_JSON,
+        )
 
 
 def _arrived(measured: Measured, target: body.Posture) -> bool:

@@ -1,7 +1,8 @@
 """``python -m dms_reachy.probe --host H --port P``: read a Reachy Mini from outside.
 
 For the tests and the benchmark: a plain SDK client, driven by JSON lines on stdin
-(``{"op": "measure"}``, ``{"op": "watch", "seconds": S}``, ``{"op": "quit"}``), answering
+(``{"op": "measure"}``, ``{"op": "watch", "seconds": S}``, ``{"op": "move", "yaw": Y, ...}``
+(a hand's stand-in: the head sent to those world angles), ``{"op": "quit"}``), answering
 one JSON line each on stdout (a watch with ``"announce": true`` first says when it
 began: ``{"watching": t}``). Times are ``time.monotonic()``, one clock for every process
 of the machine. ``measure`` is the head pose (4x4), the body yaw and the
@@ -17,6 +18,7 @@ import sys
 import time
 from typing import Any
 
+from dms_reachy.body import AXES, Posture
 from dms_reachy.robot import Reachy, RobotGone
 
 WATCH_PERIOD_S = 0.02
@@ -81,6 +83,9 @@ def main() -> int:
                 if order.get("announce"):  # for a caller that moves the robot once watched
                     print(json.dumps({"watching": time.monotonic()}), flush=True)
                 answer = watch(reachy, float(order["seconds"]))
+            elif order["op"] == "move":
+                reachy.send(Posture(**{a: float(order[a]) for a in AXES if a in order}))
+                answer = {"sent": time.monotonic()}
             else:
                 answer = {"error": f"unknown op {order['op']!r}"}
         except RobotGone as error:

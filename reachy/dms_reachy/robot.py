@@ -20,6 +20,8 @@ from dms_reachy.body import Posture
 CONNECT_TIMEOUT_S = 3.0
 CLOSE_TIMEOUT_S = 2.0
 LOCAL = frozenset({"localhost", "127.0.0.1", "::1"})
+FACES_WEIGHT = 0.001
+"""The SDK blends its tracking aim into the head's target by this weight."""
 
 
 class RobotGone(Exception):
@@ -160,6 +162,33 @@ class Reachy:
     def head_pose(self) -> Any:
         """The head's 4x4 pose in Reachy's world frame (the neutral head origin)."""
         return self._call("get_current_head_pose")
+
+    def gravity_compensation(self, on: bool) -> None:
+        """The head's motors carrying only its weight (a hand moves it), or back to
+        holding their targets. The SDK's simulator takes the ask and keeps its motors as
+        they are (it has no motor modes)."""
+        self._call("enable_gravity_compensation" if on else "disable_gravity_compensation")
+
+    def track_faces(self) -> None:
+        """Start the daemon's face detection (its head tracking) at ``weight``: above 0
+        or it does not detect; this small, the head stays the bridge's to move. A robot
+        without a camera says so in its daemon's log and finds no face."""
+        self._call("start_head_tracking", weight=FACES_WEIGHT)
+
+    def tracked_face(self) -> tuple[float, float] | None:
+        """The face the daemon found last, ``x`` and ``y`` across its image (-1..1), or
+        None (no face now, or no state from the daemon yet)."""
+        if self._mini is None:
+            raise RobotGone("not connected")
+        try:
+            face = self._mini.get_tracked_face(wait=False)
+        except AssertionError:  # the SDK's way of saying no state has come yet
+            return None
+        except Exception as error:
+            raise RobotGone(_reason(error)) from error
+        if not face.detected or face.x is None or face.y is None:
+            return None
+        return float(face.x), float(face.y)
 
     def goto_sleep(self) -> None:
         self._call("goto_sleep")

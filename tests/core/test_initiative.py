@@ -91,7 +91,7 @@ def test_the_record_is_recent() -> None:
 @pytest.mark.parametrize(("answer", "level"), [("you choose", "low"), ("bingo", "high")])
 def test_what_the_user_does_with_menus_sets_their_proactivity(answer: str, level: str) -> None:
     with _sim(user_initiative={"unknown": 1.0, "moderate": 1.0, "low": 1.0, "high": 1.0}) as sim:
-        answered = _answer_menus(sim, 1500, answer)
+        answered = _answer_menus(sim, 3000, answer)  # long enough for five menus
         assert answered >= 5
         profile = _profile(sim)
         assert profile.proactivity == level, (answered, profile)  # type: ignore[attr-defined]

@@ -31,7 +31,8 @@ def _profile(tried: Collection[str] = ()) -> Profile:
 
 
 def _chooser() -> ActivityChooser:
-    return ActivityChooser(PreferenceModel.from_seed())
+    """The exploring chooser, whose draws these tests explain (``[controller] chooser``)."""
+    return ActivityChooser(PreferenceModel.from_seed(), policy="explore")
 
 
 def _reference_choice(

@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 import urllib.request
@@ -23,6 +24,7 @@ from typing import Any
 import pytest
 import zenoh
 
+from dms.kernel.messages import UserPerception
 from dms.reachy_cli import prepare
 from tests.integration.harness import (
     Collector,
@@ -31,10 +33,13 @@ from tests.integration.harness import (
     client_session,
     free_port,
     put,
+    query,
     token_deleted,
     wait_token,
 )
 from tests.integration.test_ros2 import inet_sockets, off_loopback
+from tests.integration.test_studio import running_studio, shipped_copy
+from tests.integration.viewer_harness import CHROMIUM, CHROMIUM_ARGS, browser_missing
 
 pytestmark = [pytest.mark.integration, pytest.mark.timeout(300)]
 """A simulator start and a reconnection under a loaded CI take longer than the 120 s default."""
@@ -136,13 +141,18 @@ class Setup:
     ) -> None:
         self.session, self.sim, self.probe = session, sim, probe
         self.bridge, self.bridge_log = bridge, bridge_log
+        self.daemon_port = 0
+        self.listen()
+
+    def listen(self) -> None:
+        """Collectors for the test about to run: conftest closes each test's after it."""
+        session = self.session
         self.commands = Collector(session, "robots/mini/robot/command")
         self.feedback = Collector(session, "robots/mini/robot/feedback")
         self.decisions = Collector(session, "robots/mini/dms/decision")
         self.states = Collector(session, "robots/mini/dms/state")
         self.errors = Collector(session, "robots/mini/dms/errors")
         self.joints = Collector(session, "robots/mini/robot/joints")
-        self.daemon_port = 0
 
     def stop_bridge(self) -> None:
         if self.bridge.poll() is None:
@@ -204,6 +214,13 @@ def setup(bridge_python: Path, tmp_path_factory: pytest.TempPathFactory) -> Iter
         daemon.kill()
         sim.kill()
         session.close()
+
+
+@pytest.fixture(autouse=True)
+def listening(setup: Setup) -> None:
+    """The module's setup listens afresh for each test (its collectors of the test
+    before were closed with it)."""
+    setup.listen()
 
 
 def test_an_activity_s_gesture_moves_the_simulated_head_and_antennas(setup: Setup) -> None:
@@ -326,6 +343,147 @@ def test_the_robot_s_dashboard_starts_and_stops_dms_as_an_app(setup: Setup) -> N
     feedback.wait_for(lambda f: f["id"] == "app-1" and f["status"] == "done", timeout=30)
     with token_deleted(setup.session, alive, timeout=WAIT_S):
         dashboard(setup.sim, "stop-current-app")
+
+
+HAND_RAD = 0.03
+"""How close the recorded keyframe is to the pose the hand left (the simulator's head
+settles within a hundredth of a radian; robot/joints is read ten times a second)."""
+
+
+def test_the_studio_records_the_pose_a_hand_gave_the_robot(setup: Setup, tmp_path: Path) -> None:
+    """Take the robot's pose: compensation on, the head moved "by hand" (the probe sends
+    it through the SDK, which only a limp head would let it), Record takes robot/joints;
+    off again, the bridge drives the head once more."""
+    connect = ("--connect", f"tcp/127.0.0.1:{setup.daemon_port}")
+    with running_studio(shipped_copy(tmp_path), connect) as studio:
+        assert studio.request("GET", "/api/robot/by-hand") == (
+            200,
+            {"by_hand": False, "lease_s": 0.0, "renew_s": pytest.approx(10 / 3)},
+        )
+        status, on = studio.request("POST", "/api/robot/by-hand", {"on": True})
+        assert status == 200 and on["by_hand"] is True and on["lease_s"] > 5, on
+        setup.bridge_log.wait_for("gravity compensation on", timeout=WAIT_S)
+        # the daemon's motion is refused while a hand poses the head
+        pose = {"id": "pose-hand", "channel": "motion", "action": "pose"}
+        pose["args"] = {"joints": {"hip": 0.0, "neck": 0.0, "head": 0.0}}
+        put(setup.session, "robot/command", pose)
+        assert "by hand" in setup.status("pose-hand", "failed")["detail"]
+        hand = {"body_yaw": 0.3, "yaw": 0.75, "pitch": 0.2}
+        setup.probe.ask(op="move", **hand)
+        want = {"hip": 0.3, "neck": 0.45, "head": 0.2}
+        setup.joints.wait_for(
+            lambda j: all(abs(j["positions"][k] - v) < HAND_RAD for k, v in want.items()),
+            start=setup.joints.mark(),
+            timeout=WAIT_S,
+        )
+        status, recorded = studio.request("GET", "/api/robot?on=daemon")
+        assert status == 200, recorded
+        measured = setup.probe.ask(op="measure")
+        held = {
+            "hip": measured["body_yaw"],
+            "neck": measured["yaw"] - measured["body_yaw"],
+            "head": measured["pitch"],
+        }
+        assert set(recorded["joints"]) == set(want), recorded
+        for joint, angle in held.items():
+            assert abs(recorded["joints"][joint] - angle) < HAND_RAD, (recorded, measured)
+        mark = setup.bridge_log.mark()
+        status, off = studio.request("POST", "/api/robot/by-hand", {"on": False})
+        assert (status, off["by_hand"]) == (200, False), off
+        setup.bridge_log.wait_for("gravity compensation off", start=mark, timeout=WAIT_S)
+        assert studio.request("GET", "/api/robot/by-hand")[1]["by_hand"] is False
+        status, bad = studio.request("POST", "/api/robot/by-hand", {"on": "yes"})
+        assert status == 400 and "on: true or false" in bad["error"], bad
+    # compensation off: the daemon's motion is carried out again, from where the hand left it
+    pose["id"] = "pose-after"
+    put(setup.session, "robot/command", pose)
+    setup.status("pose-after", "done", timeout=WAIT_S)
+    after = setup.probe.ask(op="measure")
+    assert abs(after["body_yaw"]) < 0.05 and abs(after["yaw"]) < 0.05, after
+
+
+def test_a_lease_not_renewed_ends_by_hand_and_a_bad_ask_is_refused(setup: Setup) -> None:
+    """A studio gone without asking off (a closed tab) leaves the robot limp no longer
+    than its lease; an ask the bridge cannot read gets the reason back."""
+    mark = setup.bridge_log.mark()
+    [(ok, on)] = query(setup.session, "reachy/by_hand", {"on": True, "lease_s": 1})
+    assert ok and on["by_hand"] is True, on
+    setup.bridge_log.wait_for("gravity compensation on", start=mark, timeout=WAIT_S)
+    setup.bridge_log.wait_for("gravity compensation off", start=mark, timeout=WAIT_S)
+    assert query(setup.session, "reachy/by_hand") == [(True, {"by_hand": False, "lease_s": 0.0})]
+    [(ok, refused)] = query(setup.session, "reachy/by_hand", {"on": True, "lease_s": 600})
+    assert not ok and "lease_s" in refused["error"], refused
+    [(ok, refused)] = query(setup.session, "reachy/by_hand", b"[]")
+    assert not ok and "not a JSON object" in refused["error"], refused
+
+
+@pytest.mark.skipif(browser_missing() is not None, reason=str(browser_missing()))
+def test_the_studio_page_s_box_poses_the_robot_and_record_takes_its_joints(
+    setup: Setup, tmp_path: Path
+) -> None:
+    """The page as a designer uses it, in Debian's Chromium: the box is offered (the
+    robot is a Reachy Mini), ticked it turns compensation on, Record shows the joints
+    the hand left, unticked it turns compensation off."""
+    from playwright.sync_api import expect, sync_playwright
+
+    connect = ("--connect", f"tcp/127.0.0.1:{setup.daemon_port}")
+    with (
+        running_studio(shipped_copy(tmp_path), connect) as studio,
+        sync_playwright() as playwright,
+    ):
+        browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        try:
+            page = browser.new_page()
+            page.goto(studio.url)
+            box = page.locator("#by-hand")
+            expect(box).to_be_enabled(timeout=WAIT_S * 1000)
+            mark = setup.bridge_log.mark()
+            box.check()
+            setup.bridge_log.wait_for("gravity compensation on", start=mark, timeout=WAIT_S)
+            expect(page.locator("#status")).to_contain_text("by hand")
+            expect(page.locator("#try-on")).to_have_value("daemon")
+            setup.probe.ask(op="move", body_yaw=-0.2, yaw=-0.5, pitch=-0.15)
+            want = {"hip": -0.2, "neck": -0.3, "head": -0.15}
+            setup.joints.wait_for(
+                lambda j: all(abs(j["positions"][k] - v) < HAND_RAD for k, v in want.items()),
+                start=setup.joints.mark(),
+                timeout=WAIT_S,
+            )
+            page.locator("#record-button").click()
+            status = page.locator("#status")
+            expect(status).to_contain_text("recorded pose:")
+            shown = dict(re.findall(r"(hip|neck|head) (-?\d+\.\d+)", status.inner_text()))
+            assert set(shown) == set(want), shown
+            for joint, angle in want.items():
+                assert abs(float(shown[joint]) - angle) < HAND_RAD + 0.005, shown
+            mark = setup.bridge_log.mark()
+            box.uncheck()
+            setup.bridge_log.wait_for("gravity compensation off", start=mark, timeout=WAIT_S)
+            expect(status).to_contain_text("holds its pose")
+        finally:
+            browser.close()
+
+
+def test_with_faces_a_robot_without_a_camera_publishes_nobody_in_front(setup: Setup) -> None:
+    """``--faces`` asks the robot's daemon to track faces and publishes what it finds as
+    ``perception/user``: the simulator has no camera (its daemon says so), so nobody is
+    ever in front. (A face found is the pure mapping's, tested in tests/reachy/.)"""
+    users = Collector(setup.session, "robots/faces/perception/user")
+    mark = setup.sim.log.mark()
+    argv = [sys.executable, "-m", "dms.cli", "reachy", "--robot", "faces", "--faces"]
+    argv += ["--connect", f"tcp/127.0.0.1:{setup.daemon_port}"]
+    argv += ["--host", "127.0.0.1", "--port", str(setup.sim.port)]
+    bridge = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    log = StderrLines(bridge)
+    try:
+        setup.sim.log.wait_for("no camera available", start=mark, timeout=WAIT_S)
+        users.wait_count(5, timeout=WAIT_S)
+        assert all(UserPerception.model_validate(u).present is False for u in users.messages)
+        assert users.messages[0] == {"present": False}
+    finally:
+        bridge.terminate()
+        bridge.wait(20)
+    assert bridge.returncode == 0, log.lines
 
 
 def test_reachy_gone_is_reported_and_the_bridge_reconnects_when_it_returns(setup: Setup) -> None:

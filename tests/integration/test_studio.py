@@ -323,3 +323,13 @@ def test_a_behavior_that_is_not_yaml_is_refused_in_one_line(studio: Studio) -> N
     status, refused = studio.request("GET", "/api/behaviors/broken")
     assert status == 422 and "not readable YAML" in refused["error"], refused
     assert "\n" not in refused["error"], refused
+
+
+@pytest.mark.integration
+def test_without_a_daemon_the_robot_is_not_posed_by_hand(studio: Studio) -> None:
+    status, reply = studio.request("GET", "/api/robot/by-hand")
+    assert status == 409 and "no daemon" in reply["error"], reply
+    status, reply = studio.request("POST", "/api/robot/by-hand", {"on": True})
+    assert status == 409 and "--connect" in reply["error"], reply
+    status, reply = studio.request("POST", "/api/robot/by-hand", {"on": 1})
+    assert status == 400 and "on: true or false" in reply["error"], reply

@@ -16,6 +16,7 @@ and one state runs alone. The rules pane shows a verifier finding at its line, t
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -324,3 +325,19 @@ def test_the_rules_pane_shows_the_verifiers_finding_at_its_line(bench: Bench, pa
         "items => items.map((item) => item.dataset.text)"
     )
     assert checked.stdout.splitlines() == shown
+
+
+def test_a_daemon_s_robot_that_is_no_reachy_mini_is_not_posed_by_hand(bench: Bench) -> None:
+    """Only the Reachy Mini bridge answers the ask: the page keeps its box off, saying why."""
+    status, reply = bench.studio.request("GET", "/api/robot/by-hand")
+    assert status == 409 and "not a Reachy Mini" in reply["error"], reply
+    from playwright.sync_api import expect
+
+    page = bench.browser.new_page()
+    try:
+        page.goto(bench.studio.url)
+        box = page.locator("#by-hand")
+        expect(box).to_be_disabled()
+        expect(box.locator("xpath=..")).to_have_attribute("title", re.compile("not a Reachy Mini"))
+    finally:
+        page.close()

@@ -251,3 +251,43 @@ def test_a_task_frame_is_declared_in_a_form_and_aimed_at_by_name(studio: Studio,
         timeout=60,
     )
     assert checked.returncode == 0, checked.stdout + checked.stderr
+
+
+def test_a_robot_parameter_and_a_medium_are_offered_and_a_typo_of_either_is_flagged(
+    studio: Studio, page: Any
+) -> None:
+    ready(page, studio.url)
+    page.fill("#param-name", "announce")
+    page.click('#palette button[data-block="speak"]')
+    page.fill("#param-text", "My volume is {robot.volumne}.")
+    said = message_at(page, "text", "error", "{robot.volumne}")
+    assert said.endswith("robot has no parameter 'volumne'; did you mean {robot.voicevolume}?")
+    page.fill("#param-text", "My volume is {robot.voicevolume}.")
+    page.click('#palette button[data-block="play_media"]')
+    page.fill("#param-title", "Boleros")
+    # the media the shipped content lists are offered at the field
+    page.wait_for_selector(
+        '#suggest-file option[value="media/music/boleros.mp3"]', state="attached"
+    )
+    assert page.get_attribute("#param-file", "list") == "suggest-file"
+    drag(
+        page,
+        '.port[data-path="SPEAK"][data-port="done"] .hit',
+        '.state[data-path="PLAY_MEDIA"] > rect',
+    )
+    page.click('.state[data-path="PLAY_MEDIA"] > rect')
+    page.fill("#param-file", "media/music/bolero.mp3")
+    said = message_at(page, "file", "error", "bolero.mp3")
+    assert said.endswith("did you mean 'media/music/boleros.mp3'?"), said
+    page.fill("#param-file", "media/music/boleros.mp3")
+    page.wait_for_selector("#status.good")
+    page.click("#save-button")
+    page.wait_for_selector("body[data-saved='saved']")
+    saved = studio.folder / "announce.yaml"
+    checked = subprocess.run(
+        [sys.executable, "-m", "dms.cli", "behavior", "check", str(saved)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert checked.returncode == 0, checked.stdout + checked.stderr + saved.read_text()

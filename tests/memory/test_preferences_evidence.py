@@ -29,6 +29,7 @@ def _means(chooser: ActivityChooser, profile: Profile) -> dict[str, float]:
 
 
 CHOOSER = ActivityChooser(PreferenceModel.from_seed())
+EXPLORER = ActivityChooser(PreferenceModel.from_seed(), policy="explore")
 
 
 def test_a_rating_outweighs_any_number_of_completions() -> None:
@@ -103,7 +104,7 @@ def test_early_on_it_tries_several_activities() -> None:
         scores: dict[str, ActivityScore] = {}
         picks = []
         for _ in range(20):
-            name = CHOOSER.choose(_profile(scores, age=persona.features["age"]), rng).activity
+            name = EXPLORER.choose(_profile(scores, age=persona.features["age"]), rng).activity
             picks.append(name)
             old = scores.get(name, ActivityScore())
             scores[name] = ActivityScore(

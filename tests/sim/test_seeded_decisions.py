@@ -27,13 +27,14 @@ from sim.longterm import run_longterm
 from sim.study import run_study, study_settings
 
 STUDY = {
-    "dms": "4bfa6389c8f5a63c6154279e5dfec351a64bec85496c3a378f86f51e3d9e5c09",
-    "random": "e0150b14d16ba0d77bd8b4fa695dfd5dde29a3998371cb8f2ca13b5cb71e2baa",
+    "dms": "5d8570beafad1ebe7ef2581d538c99f02aaf4c9a8f750bbeb87636d03ed7e618",
+    "explore": "7189a158508cdf1e04f291c501522ff9e11de28bf30a801c57ea886aa49ee281",
+    "random": "8c04351369d972bde4b3fa3ed75032f7b4c387ad4c19419dccdf9bf756eb0c2e",
 }
 """Three participants of 30 minutes, seed 0, by the chooser that picks the robot's
 activities (a baseline's draws are its own: its decisions explain less)."""
 
-LONGTERM = "c9dfa974f4598d5964605c82f6128879c86447fd0e83b1098856b0ee44d444c1"
+LONGTERM = "1e5fdb3588e08daf2a218b439e3c9cc478d61c706b4b442c0016e5f660e62838"
 """Three days of robot life with three users visiting, seed 0."""
 
 

@@ -124,6 +124,10 @@ export function field(name, schema, value, required, onInput) {
       input.setAttribute("list", "frames");
       ensureFrames();
     }
+    if (schema.suggestions) {
+      // names to pick from (the media the content lists); another may still be typed
+      input.setAttribute("list", suggestionList(name, schema.suggestions));
+    }
     // every keystroke is an edit (one undo step per field); no re-render on blur, so a
     // click elsewhere is never lost to a form made again under it
     input.addEventListener("input", () => onInput(parseValue(input.value, types), true));
@@ -154,6 +158,24 @@ export function field(name, schema, value, required, onInput) {
       }
     },
   };
+}
+
+// A datalist of `names` for parameter `name` (made once per parameter); its id.
+function suggestionList(name, names) {
+  const id = `suggest-${name}`;
+  let list = document.getElementById(id);
+  if (!list) {
+    list = document.createElement("datalist");
+    list.id = id;
+    document.body.appendChild(list);
+  }
+  list.replaceChildren();
+  for (const each of names) {
+    const option = document.createElement("option");
+    option.value = each;
+    list.appendChild(option);
+  }
+  return id;
 }
 
 // The frame picker's suggestions, for look_at, point_at, attend and gestures toward:
