@@ -3,8 +3,8 @@
 failed or asked for another, whatever else falls on the same tick.
 
 Real controller stack on a virtual clock with a scripted user: the robot's speech fails,
-so the robot's first activity fails on a tick the first run finds; the second run, the
-same but for one more reason due on that very tick, must record that reason instead.
+so the jokes a caregiver asks for fail on a tick the first run finds; the second run,
+the same but for one more reason due on that very tick, must record that reason instead.
 """
 
 from __future__ import annotations
@@ -20,32 +20,35 @@ from tests.core.scripted import quiet_settings, seated
 ROBOT_CHOOSES = {"user_initiative": {"unknown": 0.0}}
 
 
-def _run(before: Callable[[Simulation], None] | None = None) -> tuple[str, float, list[Decision]]:
-    """The robot's first activity with speech failing from 1 s: its name, the virtual
-    second its first decision after the start falls on, and that tick's decisions."""
+def _run(before: Callable[[Simulation], None] | None = None) -> tuple[float, list[Decision]]:
+    """The jokes, asked for by a caregiver once the robot's speech fails: the virtual
+    second of the first decision after their start, and that tick's decisions."""
     with seated(quiet_settings(ROBOT_CHOOSES)) as sim:
         sim.run_for(1)
-        first = sim.decisions[0].decision
-        assert first.action == "start" and first.activity is not None
         sim.robot.set_fault("speech", "fail")
+        sim.feed(keys.REQUEST, Request(action="start", activity="jokes", by="caregiver"))
+        sim.tick(urgent=True)
+        last = sim.decisions[-1].decision
+        assert (last.action, last.activity) == ("start", "jokes")
+        mark = len(sim.decisions)
         if before is not None:
             before(sim)
         sim.run_for(20)
-        later = sim.decisions[1:]
-        assert later, "the failing speech ends the activity"
+        later = sim.decisions[mark:]
+        assert later, "the failing speech ends the jokes"
         at = later[0].t
-        return first.activity, at, [timed.decision for timed in later if timed.t == at]
+        return at, [timed.decision for timed in later if timed.t == at]
 
 
-def _failure_tick() -> tuple[str, float]:
-    activity, at, decisions = _run()
+def _failure_tick() -> float:
+    at, decisions = _run()
     first = decisions[0]
-    assert (first.action, first.activity, first.reason) == ("fail", activity, "activity_error")
-    return activity, at
+    assert (first.action, first.activity, first.reason) == ("fail", "jokes", "activity_error")
+    return at
 
 
 def test_a_high_priority_event_due_on_the_tick_the_activity_fails_is_the_reason() -> None:
-    activity, failed_at = _failure_tick()
+    failed_at = _failure_tick()
 
     def event(sim: Simulation) -> None:
         agenda = sim.stack.agenda
@@ -59,34 +62,33 @@ def test_a_high_priority_event_due_on_the_tick_the_activity_fails_is_the_reason(
         }
         agenda.add(ItemSpec.from_data(data), sim.now())
 
-    _, at, decisions = _run(event)
+    at, decisions = _run(event)
     assert at == failed_at
     assert [(d.action, d.activity, d.reason) for d in decisions] == [
-        ("cancel", activity, "agenda"),
+        ("cancel", "jokes", "agenda"),
         ("start", "cognitive_stimulation", "agenda"),
     ]
 
 
 def test_a_request_on_the_tick_the_activity_fails_is_the_reason() -> None:
-    activity, failed_at = _failure_tick()
-    wanted = "bingo" if activity != "bingo" else "quiz"
+    failed_at = _failure_tick()
+    wanted = "bingo"
 
     def request(sim: Simulation) -> None:
         asked = Request(action="start", activity=wanted, by="ann")
         sim.at(failed_at, lambda: sim.feed(keys.REQUEST, asked))
 
-    _, at, decisions = _run(request)
+    at, decisions = _run(request)
     assert at == failed_at
     assert [(d.action, d.activity, d.reason) for d in decisions][:2] == [
-        ("cancel", activity, "user_request"),
+        ("cancel", "jokes", "user_request"),
         ("start", wanted, "user_request"),
     ]
-    assert not [d for d in decisions if d.action == "fail" and d.activity == activity]
+    assert not [d for d in decisions if d.action == "fail" and d.activity == "jokes"]
 
 
-def test_a_request_and_a_high_priority_event_on_one_tick_the_request_first() -> None:
-    _, failed_at = _failure_tick()
-    due = failed_at - 2.0  # before the failure: only the two reasons meet
+def test_a_request_an_event_and_an_error_on_one_tick_the_request_first() -> None:
+    due = _failure_tick()  # three reasons on one tick: (b), (c) and (d)
 
     def both(sim: Simulation) -> None:
         agenda = sim.stack.agenda
@@ -102,6 +104,6 @@ def test_a_request_and_a_high_priority_event_on_one_tick_the_request_first() -> 
         asked = Request(action="start", activity="bingo", by="ann")
         sim.at(due, lambda: sim.feed(keys.REQUEST, asked))
 
-    _, at, decisions = _run(both)
+    at, decisions = _run(both)
     assert at == due
     assert (decisions[0].action, decisions[0].reason) == ("cancel", "user_request")
