@@ -68,6 +68,19 @@ def match_activity(text: str) -> str | None:
     return None
 
 
+def bare_activity(text: str) -> str | None:
+    """The activity ``text`` is nothing but the name or a synonym of ("Bingo!",
+    "lottery"), else None: said to a question whose answer is a name, such words ask for
+    the activity (they are no one's name)."""
+    spoken = " ".join(re.sub(r"[^\w' ]+", " ", text.lower()).replace("_", " ").split())
+    wanted = match_activity(spoken) if spoken else None
+    if wanted is None:
+        return None
+    names = {wanted.replace("_", " "), *SYNONYMS.get(wanted, ())}
+    names |= {e.label.lower() for e in current().declared if e.name == wanted and e.label}
+    return wanted if spoken in names else None
+
+
 _REQUEST_CUES = re.compile(
     r"\b(let'?s|let us|play|start|put on|i want|i'd like|i would like|can we|could we|"
     r"shall we|how about|tell me|show me|do some|do the|time for)\b"

@@ -187,9 +187,11 @@ class ControllerSettings(_Section):
     worse choices meanwhile; docs/simulation.md measures both)."""
     menu_timeout_s: float = Field(120.0, gt=0.0)
     """A menu of activities with no answer for this long ends: the user is not answering
-    (a failure of the paper's Table 4) and the robot chooses. It must leave time to look
-    through the menu: the paper's time between activities implies 60-90 s for first-time
-    users (docs/simulation.md). It counts again from each try at an answer."""
+    (a failure of the paper's Table 4) and the robot chooses. The value is assumed, not
+    measured (the paper gives none): long enough for a first-time user to look through
+    the menu, short enough that no one is left waiting. It counts from the menu's first
+    offer, a reminder that cuts the menu and offers it again does not start it over; a
+    try at an answer the menu did not understand (it asks again) does."""
     feedback_probability: float = Field(0.5, ge=0.0, le=1.0)
     session_questions: int = Field(4, ge=0, le=50)
     """General questions asked when a session starts (the paper: 4-5)."""

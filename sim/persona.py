@@ -33,9 +33,14 @@ Proactivity = Literal["low", "moderate", "high"]
 Weekday = Literal["mon", "tue", "wed", "thu", "fri", "sat", "sun"]
 WEEKDAYS: tuple[Weekday, ...] = ("mon", "tue", "wed", "thu", "fri", "sat", "sun")
 FeatureValue = str | int | float | bool
-DECLINE_MENU_RATE: dict[str, float] = {"low": 0.8, "moderate": 0.0, "high": 0.0}
+DECLINE_MENU_RATE: dict[str, float] = {"low": 0.8, "moderate": 0.4, "high": 0.0}
 """By proactivity, the chance of leaving a menu's choice to the robot: what makes a
-persona's proactivity its true one (a low one lets the robot lead)."""
+persona's proactivity its true one (a low one lets the robot lead). A moderate one is by
+definition between the two: half way between the low and the high one's rates (one that
+never declines would take the initiative as often as a high one)."""
+INITIATIVE_ANSWER: dict[str, str] = {"low": "high", "moderate": "moderate", "high": "low"}
+"""By proactivity, the answer to "how often should I start a conversation?": a user who
+lets the robot lead wants it to start often."""
 
 
 class _Spec(BaseModel):
@@ -187,6 +192,11 @@ class Persona(_Spec):
         if self.decline_menu_rate is not None:
             return self.decline_menu_rate
         return DECLINE_MENU_RATE[self.proactivity]
+
+    def initiative_answer(self) -> str:
+        """The answer to the general question on initiative that the persona's
+        proactivity gives (an ``answers`` entry naming the question wins over it)."""
+        return INITIATIVE_ANSWER[self.proactivity]
 
     def favourites(self) -> list[str]:
         """Entertainment activities, best liked first."""

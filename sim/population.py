@@ -27,15 +27,20 @@ from typing import Literal
 from dms.kernel.activity_names import SHIPPED_ENTERTAINMENT
 from memory.seed_data import EDUCATION, HOBBIES, OCCUPATIONS, SimulatedPersona, make_persona
 from sim.calibration import DEFAULT, Calibration
-from sim.persona import Patience, Persona, Preferences, Proactivity, Span, SpeechHabits
+from sim.persona import (
+    INITIATIVE_ANSWER,
+    Patience,
+    Persona,
+    Preferences,
+    Proactivity,
+    Span,
+    SpeechHabits,
+)
 
 Population = Literal["paper", "personas", "heldout"]
 ASK_BY_NAME_SCALE: dict[str, float] = {"low": 0.0, "moderate": 1.0, "high": 7.0}
 """By true proactivity, the calibrated chance of asking for a favourite by name
 (``ask_by_name_rate``, a moderate participant's) multiplied by this."""
-INITIATIVE_ANSWER: dict[str, str] = {"low": "high", "moderate": "moderate", "high": "low"}
-"""The answer to "how often should I start a conversation?": a user who lets the robot
-lead wants it to start often."""
 ARCHETYPES: dict[str, dict[str, float]] = {
     "lively": {"multimedia": 1.2, "dance": 1.4, "jokes": 0.8, "bingo": 0.3},
     "thoughtful": {"quiz": 1.3, "news": 1.1, "sayings": 0.6, "weather": 0.2},

@@ -66,8 +66,8 @@ from sim.adaptation import (
 from sim.baselines import ChooserName, install, settings_for
 from sim.calibration import DEFAULT, Calibration
 from sim.harness import Simulation, TimedDecision
-from sim.persona import Persona, Preferences, load_persona, shipped_personas
-from sim.population import INITIATIVE_ANSWER, Population, paper_participant
+from sim.persona import INITIATIVE_ANSWER, Persona, Preferences, load_persona, shipped_personas
+from sim.population import Population, paper_participant
 from sim.table4 import (
     LABELS,
     LIKES,

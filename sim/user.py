@@ -45,6 +45,8 @@ Output = tuple[str, BaseModel]
 CONFIRM_WORDS = frozenset({"stop", "continue", "yes", "no"})
 FEEDBACK_WORDS = ("1", "2", "3", "4", "5")
 REQUEST_PHRASES = ("let's do the {}", "I would like the {}", "can we do the {}, please?")
+INITIATIVE_QUESTION = "how often should i start"
+"""Words of the general question on initiative (the robot asks how often it should start)."""
 DECLINE_PHRASE = "you choose"
 """What a user says or taps to leave the menu's choice to the robot."""
 
@@ -77,6 +79,9 @@ class _Question:
     retried: bool = False
     not_before: datetime | None = None
     """The user is still looking at the choices (a menu, a rating) until then."""
+    said: str | None = None
+    """What the user answers, once chosen: misheard, they say it again rather than choose
+    anew (a "you choose" stays one: a second draw would decline less than the persona)."""
 
 
 @dataclass(order=True)
@@ -316,7 +321,9 @@ class SimulatedUser:
             question.answered = True
             self.stats.unanswered += 1
             return []
-        text = self._choose_answer(question)
+        if question.said is None:
+            question.said = self._choose_answer(question)
+        text = question.said
         if question.choices and self.rng.random() < speech.screen_rate:
             question.answered = True
             self.stats.answers += 1
@@ -352,6 +359,11 @@ class SimulatedUser:
         for phrase, answer in self.persona.answers.items():
             if phrase.lower() in asked:
                 return answer
+        if INITIATIVE_QUESTION in asked and choices:
+            # the question on initiative: answered as the persona's proactivity has it,
+            # not at random (a low one wants the robot to start often)
+            wanted = self.persona.initiative_answer()
+            return next((c for c in choices if c.lower() == wanted), self._pick(choices))
         lowered = {choice.lower() for choice in choices}
         if lowered & {"stop", "continue"} and lowered <= CONFIRM_WORDS:
             stop = self._wants_stop is not None and self._wants_stop == self.activity

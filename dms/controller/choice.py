@@ -4,10 +4,11 @@ Read this file first. The tick (``tick.py``) calls, in order:
 
 - :meth:`Choice.follow_user`: is a user ready? A session begins (step 5: the profile
   is loaded or created) or ends (the user left);
-- :meth:`Choice.follow_activity`: what the running activity did; after it, the robot
-  may ask how much the user liked it (step 7);
-- :meth:`Choice.check_cancel_reasons`: while an activity runs, the paper's four reasons
-  to cancel it, in order (step 2); a menu nobody answers ends here too;
+- :meth:`Choice.check_cancel_reasons`: while an activity runs, the paper's reasons to
+  cancel it, (a) to (c) in order (step 2); a menu nobody answers ends here too, as (d);
+- :meth:`Choice.follow_activity`: what the running activity did, unless a reason above
+  cancelled it: reason (d), it failed or asked for another; after it, the robot may ask
+  how much the user liked it (step 7);
 - :meth:`Choice.check_agenda_in_dialog`: while a question waits for its answer, a due
   agenda item interrupts it as reason (c) interrupts an activity;
 - :meth:`Choice.choose`: with nothing running, with no user the behavior of the dominant
@@ -101,7 +102,8 @@ class Choice:
         self.menu_again = False
         """The reminder cut the menu: it is offered again after it."""
         self.menu_offered: datetime | None = None
-        """When (steady time) the menu last started: ``menu_timeout_s`` counts from then."""
+        """When (steady time) the menu was first offered (offered again after a reminder,
+        it keeps its first time): ``menu_timeout_s`` counts from then."""
 
     # ------------------------------------------------------------------ steps 3 and 5: the user
 
@@ -213,9 +215,6 @@ class Choice:
                 if target:
                     self._start(target, "user_request", chosen_by, now, detail)
                 return
-        # a menu nobody answers ends: the user is not answering (the paper's Table 4)
-        if running.name == "menu" and self._menu_unanswered(running, now):
-            return
         # (c) a high-priority agenda item is due (reminders pause instead)
         for item in self.due_items(now):
             if running.paused or running.name == "notification":
@@ -240,11 +239,15 @@ class Choice:
                 self.sessions.record_activity(running, "stopped", now)
                 self._run_agenda_item(item, now)
                 return
-        # (d) the activity failed or redirected: follow_activity has seen to it
+        # (d) a menu nobody answers fails: the user is not answering (the paper's Table 4);
+        # an activity that failed or asked for another: follow_activity, next, sees to it
+        if running.name == "menu":
+            self._menu_unanswered(running, now)
 
     def _menu_unanswered(self, running: Running, now: datetime) -> bool:
         """End the menu if it has had no answer for ``menu_timeout_s`` (since it was
-        offered, or since the user last tried to answer); True if it ended.
+        first offered, a reminder in between or not, or since the user last tried to
+        answer); True if it ended.
 
         A user who does not answer counts in the session's ``user_not_answering`` and
         let the choice pass: the robot chooses next, as after "you choose".
@@ -272,6 +275,13 @@ class Choice:
         session = self.sessions.session
         if session is not None and self.sessions.perception_unknown():
             return  # the user may still be there: start nothing until perception says
+        if self.runner.blocked and self.runner.failing is not None:
+            # an output channel fails: only what the user asks for by name is tried until
+            # the next probe (no question, no menu, no pick of the robot's only to fail)
+            asked = self.requests.take()
+            if asked is not None and asked.target:
+                self._start(asked.target, "user_request", asked.chosen_by, now, asked.detail)
+            return
         if ready is None or session is None:
             # step 4: no user ready, the behavior of the dominant motivation (or a request)
             asked = self.requests.take()
@@ -462,7 +472,19 @@ class Choice:
         elif suspended is not None:
             self.runner.resume(suspended, "agenda", now, f"after the {what}")
         elif menu_again:
-            self._start("menu", "user_choice", "user", now, f"offered again after the {what}")
+            self._offer_menu_again(what, now)
+
+    def _offer_menu_again(self, what: str, now: datetime) -> None:
+        """After the reminder that cut it, the menu comes back for the rest of its time:
+        ``menu_timeout_s`` counts from its first offer, so that no reminder leaves the
+        user longer unanswered. Its time up, the robot chooses, as after no answer."""
+        first = self.menu_offered
+        steady = self.sessions.steady(now)
+        if first is not None and (steady - first).total_seconds() >= self.settings.menu_timeout_s:
+            self.sessions.left_to_robot(now, unanswered=True)
+            return
+        self._start("menu", "user_choice", "user", now, f"offered again after the {what}")
+        self.menu_offered = first or self.menu_offered
 
     def _forget_interrupted(self) -> None:
         """What a reminder interrupted does not come back (the user asked for something

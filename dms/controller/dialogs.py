@@ -69,7 +69,7 @@ class Dialogs:
                 question.text,
                 tuple(question.choices or ()),
                 self.sessions.steady(now) + timedelta(seconds=self.settings.question_timeout_s),
-                {"question": question.id},
+                {"question": question.id, "field": question.field},
             ),
             now,
         )

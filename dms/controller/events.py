@@ -12,7 +12,7 @@ import logging
 from collections.abc import Callable
 from datetime import datetime
 
-from activities.synonyms import match_activity, requests_activity
+from activities.synonyms import bare_activity, match_activity, requests_activity
 from dms.config import ControllerSettings
 from dms.controller.deps import ControllerDeps, Counters
 from dms.controller.dialogs import Dialogs
@@ -195,11 +195,14 @@ class Events:
 
         A screen choice of an activity is a request (a question's own choices aside, the
         screen offers activities); words are one if they sound like one ("let's play
-        bingo"), or if the question has choices and they answer none of them. "Bingo"
-        said to "What is your name?" is taken as the answer.
+        bingo"), or if the question has choices and they answer none of them, or if the
+        question asks for a name and they are nothing but an activity's name or synonym
+        ("bingo" to "What is your name?": no one is called Bingo by a robot's mistake).
         """
         if wanted is None:
             return False
+        if dialog.context.get("field") == "name" and bare_activity(text) == wanted:
+            return True
         if dialog.kind is DialogKind.CONFIRM_CANCEL and wanted == dialog.context.get("activity"):
             return False
         if any(match_activity(choice) == wanted for choice in dialog.choices):

@@ -1,4 +1,5 @@
-"""The activity that runs, its managers, and the robot link that lets activities start.
+"""The activity that runs, its managers, and the robot link that lets activities start
+(offline, or with an output channel that keeps failing, starts back off).
 
 :class:`Runner` starts, pauses, resumes, cancels and follows activities through their
 managers and says so in the decision log; what to start and when is the choice's
@@ -22,6 +23,7 @@ from dms.controller.deps import ControllerDeps, Counters
 from dms.controller.state import ActivityFacts
 from dms.kernel.activity_names import ACTIVITIES, ManagerName, manager_of
 from dms.kernel.messages import (
+    Channel,
     ChosenBy,
     Reason,
     ScreenChoice,
@@ -74,7 +76,12 @@ class Runner:
         self.cleaning: set[ManagerName] = set()
         """Managers whose cancelled activities still run their cleanup states."""
         self.blocked = False
-        """The robot is offline and no probe is due: nothing starts."""
+        """The robot is offline, or an output channel fails, and no probe is due: nothing
+        starts (but what the user asks for by name)."""
+        self.failing: Channel | None = None
+        """The output channel whose commands keep failing, if any (``dms/state``)."""
+        self._trouble: str | None = None
+        """What the probes wait out: ``offline``, or the failing channel."""
         self._probe_at: float | None = None
         """Monotonic seconds of the next probe (a wall clock set back must not delay it)."""
         self._probe_wait_s = 0.0
@@ -95,8 +102,12 @@ class Runner:
         why: Why | None = None,
     ) -> bool:
         """Start ``name`` for ``user_id`` (None: nobody); False if it did not start."""
-        if self.blocked:
-            if chosen_by == "user" or reason == "user_request":  # said, never dropped silently
+        # A failing channel holds the robot's own starts until the next probe, in silence,
+        # but tries what the user asks for by name: she paces it, and it may work again.
+        if self.blocked and not (self.failing is not None and reason == "user_request"):
+            offline = self.failing is None
+            if offline and (chosen_by == "user" or reason == "user_request"):
+                # said, never dropped silently
                 self.log.decide(
                     "fail", name, "activity_error", chosen_by, "the robot is offline", now
                 )
@@ -258,25 +269,48 @@ class Runner:
         Offline (too many commands in a row not acknowledged), the robot starts nothing:
         an activity that only times out helps no one. Every so often one start is let
         through as a probe, the wait doubling from ``ack_timeout_s`` up to
-        ``offline_retry_max_s``; feedback or the robot's token ends it at once.
+        ``offline_retry_max_s``; feedback or the robot's token ends it at once. An output
+        channel that keeps failing (:attr:`failing`) backs off the same way, so that a
+        robot whose speech fails does not start and fail an activity every tick; a
+        command done on it ends it.
         """
+        self.failing = self.deps.expression.failing_channel
         self.blocked = self._unreachable(monotonic)
 
     def _unreachable(self, monotonic: float) -> bool:
+        """Whether starts wait: the robot is offline, or an output channel keeps failing
+        (then each start would only fail again: at most one is tried per probe)."""
         settings, expression = self.settings, self.deps.expression
-        if not expression.robot_offline:
+        trouble = "offline" if expression.robot_offline else self.failing
+        if trouble is None or (self._trouble is not None and trouble != self._trouble):
             if self._probe_at is not None:
                 self._probe_at = None
-                self.deps.report_error("robot", "robot back online: activities start again")
-            return False
+                if self._trouble == "offline":
+                    self.deps.report_error("robot", "robot back online: activities start again")
+                else:
+                    self.deps.report_error(
+                        "robot", f"the {self._trouble} channel works again: activities start"
+                    )
+            self._trouble = None
+            if trouble is None:
+                return False
         if self._probe_at is None:
+            self._trouble = trouble
             self._probe_wait_s = settings.ack_timeout_s
             self._probe_at = monotonic + self._probe_wait_s
-            self.deps.report_error(
-                "robot",
-                f"robot offline: {expression.unacked_in_a_row} commands in a row"
-                " not acknowledged; no activity starts until it answers",
-            )
+            if trouble == "offline":
+                self.deps.report_error(
+                    "robot",
+                    f"robot offline: {expression.unacked_in_a_row} commands in a row"
+                    " not acknowledged; no activity starts until it answers",
+                )
+            elif self.failing is not None:
+                failed = expression.failed_in_a_row.get(self.failing, 0)
+                self.deps.report_error(
+                    "robot",
+                    f"the {self.failing} channel fails: {failed} commands in a row failed;"
+                    " activities are tried again after a wait that doubles",
+                )
             return True
         if monotonic < self._probe_at:
             return True

@@ -15,6 +15,7 @@ from dms.controller.drives import motivation_snapshot
 from dms.kernel.clock import iso
 from dms.kernel.messages import (
     ActivityState,
+    Channel,
     Decision,
     DmsState,
     Mode,
@@ -72,6 +73,8 @@ class TickRecord:
     """The activity a reminder paused, if any."""
     inputs: Mapping[str, Literal["ok", "stale", "missing", "not_published"]]
     robot_link: Literal["ok", "offline"]
+    failing_channel: Channel | None
+    """The output channel whose commands keep failing, if any."""
     motivation_state: MotivationState | None
     """The motivation model's own state after the tick (None before the first step)."""
     model: MotivationModel = field(repr=False)
@@ -106,4 +109,5 @@ class TickRecord:
             motivation=self.motivation,
             inputs=self.inputs,
             robot_link=self.robot_link,
+            failing_channel=self.failing_channel,
         )

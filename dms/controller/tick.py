@@ -140,18 +140,21 @@ class Controller:
         if runner.cleaning:
             barrier.run("cleanup", None, runner.wind_down, now)
         if dialogs.dialog is None:
-            # Step 2 (and 7). An activity runs: what it did (reason (d); after it ends,
-            # maybe the rating is asked), then the reasons (a) to (c) to cancel it.
-            running = runner.current
-            if running is not None and not barrier.run(
-                "activity", running.name, choice.follow_activity, now
-            ):
-                self._abandon_current(now, "activity")
+            # Step 2 (and 7). An activity runs: the reasons (a) to (c) to cancel it, in the
+            # paper's order, then what it did (reason (d): it failed or asked for another;
+            # after it ends, maybe the rating is asked). An activity cancelled for (a) to
+            # (c) is not followed: whatever it did this tick, the earlier reason decided.
             running = runner.current
             if running is not None and not barrier.run(
                 "cancel", running.name, choice.check_cancel_reasons, now
             ):
                 self._abandon_current(now, "cancel")
+            if (
+                running is not None
+                and runner.current is running
+                and not barrier.run("activity", running.name, choice.follow_activity, now)
+            ):
+                self._abandon_current(now, "activity")
             # Steps 4, 6 and 8. Nothing runs: the motivation's behavior, or with a user an
             # agenda item, a general question, or an activity chosen by their proactivity.
             if runner.current is None and dialogs.dialog is None:
@@ -347,6 +350,7 @@ class Controller:
             suspended=runner.published(runner.suspended),
             inputs=snapshot.status if snapshot is not None else {},
             robot_link="offline" if self.deps.expression.robot_offline else "ok",
+            failing_channel=runner.failing,
             motivation_state=self.drives.state,
             model=self.drives.model,
         )

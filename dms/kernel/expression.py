@@ -36,6 +36,10 @@ from dms.kernel.ports import RobotPort
 
 BEST_EFFORT_CHANNELS = frozenset({"aim"})
 """Channels whose silence says nothing about the robot being there."""
+FAILING_AFTER = 2
+"""Commands in a row the robot reports failed on one channel before it counts as failing:
+one failure may be a passing hitch; a second in a row, with nothing done between, is a
+channel that does not work (the controller then backs off, starting activities seldom)."""
 
 
 class Priority(IntEnum):
@@ -134,6 +138,8 @@ class ExpressionArbiter:
         self.offline_after_unacked = offline_after_unacked
         self.unacked_in_a_row = 0
         """Commands the robot never acknowledged since it last said anything."""
+        self.failed_in_a_row: dict[Channel, int] = {}
+        """By channel: commands the robot reported failed since one last was done."""
         self._seen = False  # set from a bus thread by robot_seen(), read by update()
         self._monotonic: float | None = None
 
@@ -218,6 +224,13 @@ class ExpressionArbiter:
         until the robot says anything again (feedback, or its liveliness token)."""
         return self.unacked_in_a_row >= self.offline_after_unacked
 
+    @property
+    def failing_channel(self) -> Channel | None:
+        """The channel whose last :data:`FAILING_AFTER` commands (or more) all failed, until
+        one is done on it; the first in alphabetical order if several fail."""
+        failing = sorted(c for c, n in self.failed_in_a_row.items() if n >= FAILING_AFTER)
+        return failing[0] if failing else None
+
     def robot_seen(self) -> None:
         """The robot's liveliness token came (back): it is reachable. Any thread."""
         self._seen = True
@@ -238,6 +251,11 @@ class ExpressionArbiter:
                 handle.started_monotonic = self._monotonic
                 continue
             self._by_id.pop(feedback.id, None)
+            if feedback.status == "failed" and handle.channel not in BEST_EFFORT_CHANNELS:
+                failed = self.failed_in_a_row.get(handle.channel, 0)
+                self.failed_in_a_row[handle.channel] = failed + 1
+            elif feedback.status == "done":
+                self.failed_in_a_row.pop(handle.channel, None)
             handle.detail = feedback.detail
             handle.status = {
                 "done": CommandStatus.DONE,

@@ -287,7 +287,7 @@ Mode = Literal["motivation", "autonomous", "user_choice", "hybrid"]
 class DmsState(_OmitsUnset):
     """``dms/state``: the daemon's state, every tick and after every decision."""
 
-    _OPTIONAL = ("started",)
+    _OPTIONAL = ("started", "failing_channel")
 
     robot: str
     tick: int
@@ -301,6 +301,10 @@ class DmsState(_OmitsUnset):
     robot_link: Literal["ok", "offline"] = "ok"
     """``offline``: too many commands in a row not acknowledged; no activity starts
     until the robot answers again (feedback, or its ``alive/robot/feedback`` token)."""
+    failing_channel: Channel | None = None
+    """Optional: the output channel whose commands keep failing (two or more in a row
+    reported failed, none done since), e.g. ``speech``; left out while none fails. Starts
+    then back off as while offline: one is tried after a wait that doubles."""
     reloads: int = 0
     """Reloads of the rules and behaviors finished since the start (SIGHUP, ``reload_rules``):
     a client that asked for one knows it is in force once this has grown."""

@@ -9,10 +9,13 @@ from __future__ import annotations
 
 from datetime import datetime, timedelta
 
+import pytest
+
 from agenda import ItemSpec
 from dms.dialog import Dialog, DialogKind, feedback_dialog
 from dms.kernel import keys
 from dms.kernel.messages import Decision, RobotCommand, ScreenChoice, Speech, Touch
+from memory.questions import Question
 from sim.harness import Simulation
 from tests.core.scripted import quiet_settings, seated
 
@@ -93,11 +96,40 @@ def test_a_screen_choice_of_an_activity_during_the_name_question_starts_it_at_on
         assert getattr(profiles.store.get("ann"), "name", None) != "bingo"
 
 
-def test_an_activity_named_without_asking_for_it_answers_an_open_question() -> None:
+@pytest.mark.parametrize("said", ["bingo", "Bingo!", "lottery"])
+def test_a_bare_activity_name_said_to_the_name_question_asks_for_it(said: str) -> None:
     with _sim(session_questions=4) as sim:
         sim.run_for(2)
-        assert sim.controller.dialog is not None
-        decisions = _say(sim, "bingo")  # a name, for all the robot knows
+        dialog = sim.controller.dialog
+        assert dialog is not None and "name" in dialog.question.lower()
+        decisions = _say(sim, said)
+        started = [(d.activity, d.reason, d.chosen_by) for d in decisions if d.action == "start"]
+        assert started == [("bingo", "user_request", "user")]
+        assert sim.controller.counters.unanswered == 0, "closed by the request, not unanswered"
+        sim.run_for(2)
+        profiles = sim.controller.deps.profiles
+        assert profiles is not None
+        assert getattr(profiles.store.get("ann"), "name", None) is None
+
+
+def test_a_name_that_only_contains_an_activity_word_is_a_name() -> None:
+    with _sim(session_questions=4) as sim:
+        sim.run_for(2)
+        decisions = _say(sim, "my name is Dance Smith")
+        assert not [d for d in decisions if d.action == "start" and d.activity == "dance"]
+        sim.run_for(2)
+        profiles = sim.controller.deps.profiles
+        assert profiles is not None
+        assert getattr(profiles.store.get("ann"), "name", None) == "Dance Smith"
+
+
+def test_an_activity_named_without_asking_for_it_answers_another_question() -> None:
+    with _sim(session_questions=0, user_initiative={"unknown": 0.0}) as sim:
+        sim.run_for(1)
+        controller = sim.controller
+        hobbies = Question("hobbies", "What are your hobbies?", None, "hobbies")
+        controller.dialogs.ask_question(hobbies, sim.now())
+        decisions = _say(sim, "bingo")  # a hobby, for all the robot knows
         assert not [d for d in decisions if d.action == "start" and d.activity == "bingo"]
 
 
@@ -202,6 +234,34 @@ def test_a_reminder_due_during_the_menu_is_said_and_the_menu_offered_again() -> 
         sim.run_for(2)
         starts = [d for d in _since(sim, 0) if d.action == "start" and d.activity == "quiz"]
         assert starts and starts[0].chosen_by == "user", decisions
+
+
+def test_a_menu_offered_again_after_a_reminder_keeps_the_time_of_its_first_offer() -> None:
+    with _sim(menu_timeout_s=30, **MENU_FIRST) as sim:
+        sim.run_for(1)
+        first = next(t.t for t in sim.decisions if t.decision.activity == "menu")
+        _remind(sim, 10)
+        again = _run_until_decision(sim, 20, "start", "menu")
+        assert again - first < 30
+        ended = _run_until_decision(sim, 40, "cancel", "menu")
+        assert ended - first <= 30.5, "never left longer than menu_timeout_s unanswered"
+        assert sim.controller.counters.unanswered == 1
+
+
+def test_a_menu_whose_time_ran_out_during_a_reminder_is_not_offered_again() -> None:
+    long_text = " ".join(["Time for your pills, with a glass of water, then rest."] * 8)
+    with _sim(menu_timeout_s=30, **MENU_FIRST) as sim:
+        sim.run_for(1)
+        first = next(t.t for t in sim.decisions if t.decision.activity == "menu")
+        _remind(sim, 10, text=long_text)
+        done = _run_until_decision(sim, 60, "complete", "notification")
+        assert done - first > 30, "the reminder outlasts the menu's time"
+        sim.run_for(1)
+        after = [t.decision for t in sim.decisions if t.t >= done and t.decision.action == "start"]
+        assert after and after[0].activity != "menu", after
+        assert after[0].chosen_by == "robot" and after[0].why is not None
+        assert after[0].why.mode is not None and after[0].why.mode.left_to_robot
+        assert sim.controller.counters.unanswered == 1
 
 
 def test_a_reminder_due_during_a_question_is_said_and_the_question_asked_again() -> None:

@@ -22,8 +22,10 @@ KNOWN: dict[str, Any] = {
     "menu_delay_s": (12.0, 24.0),
     "rating_delay_s": (6.0, 10.0),
     "screen_rate": 1.0,
+    "decline_menu_rate": 0.0,
 }
-"""People who tap every choice after these delays."""
+"""People who tap every choice after these delays, choosing from every menu themselves
+(none left to the robot: the menus observed are as many as the test was sized for)."""
 
 
 @pytest.fixture(scope="module")

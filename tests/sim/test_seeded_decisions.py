@@ -27,14 +27,14 @@ from sim.longterm import run_longterm
 from sim.study import run_study, study_settings
 
 STUDY = {
-    "dms": "5d8570beafad1ebe7ef2581d538c99f02aaf4c9a8f750bbeb87636d03ed7e618",
-    "explore": "7189a158508cdf1e04f291c501522ff9e11de28bf30a801c57ea886aa49ee281",
-    "random": "8c04351369d972bde4b3fa3ed75032f7b4c387ad4c19419dccdf9bf756eb0c2e",
+    "dms": "e78ff5f98cef8a501ac12164c994f2aabafb7db5f2b02f7bc0e6f6ebfb347e28",
+    "explore": "3b96a12857c04abc361bd706aac8833593c216228efe6bb3c3bbecdf212b2722",
+    "random": "71ec5e33f1935aa49faec568dcb45c29ad5c67b32ca615d1dd6b64c3091b275d",
 }
 """Three participants of 30 minutes, seed 0, by the chooser that picks the robot's
 activities (a baseline's draws are its own: its decisions explain less)."""
 
-LONGTERM = "1e5fdb3588e08daf2a218b439e3c9cc478d61c706b4b442c0016e5f660e62838"
+LONGTERM = "a95820524148acbaacd3f667510f8e98a2431262a049da1de09f0c12912aece5"
 """Three days of robot life with three users visiting, seed 0."""
 
 

@@ -19,6 +19,7 @@ def _persona(**changes: object) -> Persona:
         preferences=Preferences(quiz=0.9, bingo=0.1),
         speech=SpeechHabits(error_rate=0.0, no_answer_rate=0.0, screen_rate=0.0),
         arrive_after_s=1.0,  # type: ignore[arg-type]
+        proactivity="high",  # picks from a menu itself, unless a test says otherwise
     )
     return base.model_copy(update=changes)
 
@@ -207,3 +208,46 @@ def test_answers_yes_or_no_about_itself_truthfully() -> None:
         user.on_command(_show(["yes", "no"]), now)
         out = _run(user, now + timedelta(seconds=30))
         assert [m.text for k, m in out if isinstance(m, Speech)] == [expected]
+
+
+def test_answers_the_question_on_initiative_as_its_proactivity_has_it() -> None:
+    wanted = {"low": "high", "moderate": "moderate", "high": "low"}
+    for level, answer in wanted.items():
+        for seed in range(5):
+            user = SimulatedUser(_persona(proactivity=level), random.Random(seed))
+            now = _ready(user)
+            text = "How often should I start a conversation: low, moderate or high?"
+            user.on_command(_say(text), now)
+            user.on_command(_show(["low", "moderate", "high"]), now)
+            [(_, message)] = _run(user, now + timedelta(seconds=10))
+            assert isinstance(message, Speech) and message.text == answer, (level, seed)
+
+
+def test_a_misheard_menu_answer_is_said_again_not_chosen_anew() -> None:
+    habits = SpeechHabits(error_rate=1.0, no_answer_rate=0.0, screen_rate=0.0)
+    for seed in range(40):
+        user = SimulatedUser(_persona(proactivity="moderate", speech=habits), random.Random(seed))
+        now = _ready(user)
+        user.on_command(_say("What would you like to do?"), now)
+        user.on_command(_show(["bingo", "quiz", "jokes"]), now)
+        first, retry = (m for _, m in _run(user, now + timedelta(seconds=60)))
+        assert isinstance(first, Speech) and isinstance(retry, Speech)
+        # garbled word for word: "you choose" has two words, an activity one
+        assert len(first.text.split()) == len(retry.text.split()), seed
+        assert user.stats.menu_declines <= 1, seed
+
+
+def test_a_moderate_user_declines_some_menus_a_high_one_none() -> None:
+    def declines(level: str) -> int:
+        count = 0
+        for seed in range(40):
+            user = SimulatedUser(_persona(proactivity=level), random.Random(seed))
+            now = _ready(user)
+            user.on_command(_say("What would you like to do?"), now)
+            user.on_command(_show(["bingo", "quiz", "jokes"]), now)
+            _run(user, now + timedelta(seconds=30))
+            count += user.stats.menu_declines
+        return count
+
+    low, moderate, high = declines("low"), declines("moderate"), declines("high")
+    assert high == 0 and 0 < moderate < low, (low, moderate, high)
