@@ -12,13 +12,14 @@ bridge (``exec``). It reaches the daemon over Zenoh only (docs/reachy.md).
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
+from dms.bridge_env import bridge_python as environment_python
+from dms.bridge_env import prepare_environment
 from dms.kernel import keys
 from dms.kernel.cli_options import ConnectOption, RobotOption, ZenohConfigOption
 from dms.kernel.errors import ConfigError
@@ -27,7 +28,6 @@ CHECKOUT = Path(__file__).resolve().parents[1]
 """The folder holding ``dms/`` and, in a checkout, ``reachy/``."""
 SOURCE = CHECKOUT / "reachy"
 VENV = CHECKOUT / ".venv-reachy"
-STAMP_NAME = ".installed-stamp"
 SYSTEM_PACKAGES = (
     "libcairo2-dev libgirepository1.0-dev gir1.2-gstreamer-1.0 gir1.2-gst-plugins-base-1.0"
     " espeak-ng"
@@ -37,40 +37,15 @@ daemon loads GStreamer's bindings, Gst, GstApp and GstPbutils) and the bridge's 
 
 
 def bridge_python(venv: Path = VENV) -> Path:
-    return venv / "bin" / "python"
+    return environment_python(venv)
 
 
 def prepare(venv: Path = VENV, source: Path = SOURCE, echo: bool = True) -> Path:
-    """Make (or bring up to date) the bridge's environment; return its Python.
-
-    Raises ConfigError, with pip's last lines, when it cannot be made (no checkout, no
-    network and no cache, Debian's packages missing for PyGObject)."""
-    project = source / "pyproject.toml"
-    if not project.is_file():
-        raise ConfigError(
-            f"dms reachy needs the source checkout: {project} is missing "
-            "(the bridge is installed from reachy/ beside dms/)"
-        )
-    stamp = venv / STAMP_NAME
-    python = bridge_python(venv)
-    if python.exists() and stamp.exists() and stamp.stat().st_mtime >= project.stat().st_mtime:
-        return python
-    if echo:
-        typer.echo(f"dms reachy: preparing {venv} (pip install -e {source})", err=True)
-    steps = [
-        [sys.executable, "-m", "venv", str(venv)],
-        [str(python), "-m", "pip", "install", "--quiet", "-e", str(source)],
-    ]
-    for step in steps:
-        done = subprocess.run(step, capture_output=True, text=True, check=False)
-        if done.returncode != 0:
-            tail = " | ".join((done.stderr or done.stdout).strip().splitlines()[-3:])
-            raise ConfigError(
-                f"cannot prepare {venv}: {' '.join(step[:4])}: {tail} "
-                f"(on Debian: apt-get install {SYSTEM_PACKAGES})"
-            )
-    stamp.touch()
-    return python
+    """Make (or bring up to date) the bridge's environment; return its Python
+    (:func:`dms.bridge_env.prepare_environment`)."""
+    return prepare_environment(
+        "reachy", venv, source, echo, f"on Debian: apt-get install {SYSTEM_PACKAGES}"
+    )
 
 
 def reachy(

@@ -11,7 +11,6 @@ newer than its stamp; then this process becomes the bridge (``exec``).
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
 from collections.abc import Mapping
 from pathlib import Path
@@ -19,6 +18,8 @@ from typing import Annotated
 
 import typer
 
+from dms.bridge_env import bridge_python as environment_python
+from dms.bridge_env import prepare_environment
 from dms.kernel import keys
 from dms.kernel.cli_options import ConnectOption, RobotOption, ZenohConfigOption
 from dms.kernel.errors import ConfigError
@@ -58,41 +59,16 @@ CHECKOUT = Path(__file__).resolve().parents[1]
 """The folder holding ``dms/`` and, in a checkout, ``ros2/``."""
 SOURCE = CHECKOUT / "ros2"
 VENV = CHECKOUT / ".venv-ros2"
-STAMP_NAME = ".installed-stamp"
 
 
 def bridge_python(venv: Path = VENV) -> Path:
-    return venv / "bin" / "python"
+    return environment_python(venv)
 
 
 def prepare(venv: Path = VENV, source: Path = SOURCE, echo: bool = True) -> Path:
-    """Make (or bring up to date) the bridge's environment; return its Python.
-
-    Raises ConfigError, with pip's last lines, when it cannot be made (no checkout, no
-    network and no cache, a Python the ROS 2 wheels are not built for)."""
-    project = source / "pyproject.toml"
-    if not project.is_file():
-        raise ConfigError(
-            f"dms ros2 needs the source checkout: {project} is missing "
-            "(the bridge is installed from ros2/ beside dms/)"
-        )
-    stamp = venv / STAMP_NAME
-    python = bridge_python(venv)
-    if python.exists() and stamp.exists() and stamp.stat().st_mtime >= project.stat().st_mtime:
-        return python
-    if echo:
-        typer.echo(f"dms ros2: preparing {venv} (pip install -e {source})", err=True)
-    steps = [
-        [sys.executable, "-m", "venv", str(venv)],
-        [str(python), "-m", "pip", "install", "--quiet", "-e", str(source)],
-    ]
-    for step in steps:
-        done = subprocess.run(step, capture_output=True, text=True, check=False)
-        if done.returncode != 0:
-            tail = " | ".join((done.stderr or done.stdout).strip().splitlines()[-3:])
-            raise ConfigError(f"cannot prepare {venv}: {' '.join(step[:4])}: {tail}")
-    stamp.touch()
-    return python
+    """Make (or bring up to date) the bridge's environment; return its Python
+    (:func:`dms.bridge_env.prepare_environment`)."""
+    return prepare_environment("ros2", venv, source, echo)
 
 
 def bridge_environment(environ: Mapping[str, str], venv: Path = VENV) -> dict[str, str]:
