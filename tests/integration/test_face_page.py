@@ -8,6 +8,10 @@ decision arrives, and the page shows what the robot says and shows. Saves docs/f
 
 from __future__ import annotations
 
+import csv
+import io
+import subprocess
+import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -165,6 +169,31 @@ def test_a_person_arrives_plays_the_quiz_rates_it_and_leaves(face: Face, page: A
     assert left["action"] == "cancel"
     page.wait_for_selector("#who:text-is('Nobody is here')")
     page.wait_for_selector("button[data-person='ada']:text('Ada')")
+
+    # the session is stored with its timings, as a researcher exports it
+    assert face.daemon.terminate() == 0
+    events = [row for row in _events(face.daemon.db) if row["user"] == "ada"]
+    kinds = [row["event"] for row in events]
+    assert kinds[0] == "arrived" and kinds[-1] == "left", kinds
+    taps = [r for r in events if r["event"] == "input" and r["channel"] == "screen"]
+    assert taps and all(r["delay_s"] not in ("", None) for r in taps if r["offer"])
+    assert any(r["event"] == "offered" and r["offer_kind"] == "menu" for r in events)
+    assert any(r["event"] == "offered" and r["offer_kind"] == "rating" for r in events)
+    assert any(r["event"] == "input" and r["channel"] == "touch" for r in events)
+    assert any(r["event"] == "cancelled" and r["activity"] == "quiz" for r in events)
+
+
+def _events(db: str) -> list[dict[str, str]]:
+    """``dms sessions export --events`` as a researcher runs it: one row per event."""
+    command = ["sessions", "export", "--events", "--format", "csv", "--db", db]
+    done = subprocess.run(
+        [sys.executable, "-m", "dms.cli", *command],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 0, done.stderr
+    return list(csv.DictReader(io.StringIO(done.stdout)))
 
 
 def test_the_eyes_follow_the_aim_and_the_cheeks_take_the_led_colour(face: Face, page: Any) -> None:
