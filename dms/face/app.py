@@ -19,10 +19,8 @@ A malformed request is a 400 with one line naming what was wrong.
 
 from __future__ import annotations
 
-import asyncio
 import json
-from collections.abc import AsyncIterator, Awaitable, Callable
-from contextlib import suppress
+from collections.abc import Awaitable, Callable
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -31,7 +29,7 @@ from pydantic import ValidationError
 from starlette.applications import Starlette
 from starlette.concurrency import run_in_threadpool
 from starlette.requests import Request
-from starlette.responses import FileResponse, JSONResponse, Response, StreamingResponse
+from starlette.responses import FileResponse, JSONResponse, Response
 from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
@@ -40,16 +38,13 @@ from dms.face.feed import FaceFeed
 from dms.face.link import FaceLink
 from dms.face.voice import MAX_BYTES, Transcriber, VoiceError
 from dms.kernel.ids import InvalidIdentifier
-from dms.viewer.app import sse
+from dms.viewer.stream import event_stream
 
 STATIC = Path(str(resources.files("dms.face") / "static"))
-KEEPALIVE_S = 15.0
 QUEUE_LIMIT = 2000
 """Events a page may lag behind before it is cut off (it reconnects to a fresh snapshot)."""
 MAX_BODY = 16_384
 """The largest JSON request: a tap or a typed answer is a few hundred bytes."""
-
-_Event = tuple[str, dict[str, Any]] | None
 
 
 class BadRequest(Exception):
@@ -187,45 +182,8 @@ def create_app(
         return JSONResponse(feed.snapshot())
 
     async def events(_request: Request) -> Response:
-        loop = asyncio.get_running_loop()
-        pending: asyncio.Queue[_Event] = asyncio.Queue()
-        cut = False
-
-        def put(event: _Event) -> None:
-            nonlocal cut
-            if cut:
-                return
-            if pending.qsize() >= QUEUE_LIMIT:
-                cut, event = True, None
-            pending.put_nowait(event)
-
-        def listener(name: str, data: dict[str, Any]) -> None:
-            with suppress(RuntimeError):  # the server is stopping: its loop is closed
-                loop.call_soon_threadsafe(put, (name, data) if name else None)
-
-        async def stream() -> AsyncIterator[str]:
-            first = feed.attach(listener)
-            if first is None:  # the page says so, and does not reconnect
-                yield sse("full", {"error": "too many pages open on this face"})
-                return
-            try:
-                yield "retry: 1000\n" + sse("snapshot", first)
-                while True:
-                    try:
-                        event = await asyncio.wait_for(pending.get(), KEEPALIVE_S)
-                    except TimeoutError:
-                        yield ": keepalive\n\n"
-                        continue
-                    if event is None:
-                        return
-                    yield sse(*event)
-            finally:
-                feed.detach(listener)
-
-        return StreamingResponse(
-            stream(),
-            media_type="text/event-stream",
-            headers={"Cache-Control": "no-store", "X-Accel-Buffering": "no"},
+        return event_stream(
+            feed.attach, feed.detach, QUEUE_LIMIT, "too many pages open on this face"
         )
 
     return Starlette(

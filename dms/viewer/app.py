@@ -17,37 +17,24 @@ what they said).
 
 from __future__ import annotations
 
-import asyncio
-import json
-from collections.abc import AsyncIterator
-from contextlib import suppress
 from importlib import resources
 from pathlib import Path
-from typing import Any
 
 from starlette.applications import Starlette
 from starlette.middleware import Middleware
 from starlette.requests import Request
-from starlette.responses import FileResponse, JSONResponse, Response, StreamingResponse
+from starlette.responses import FileResponse, JSONResponse, Response
 from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
 from dms.viewer.auth import TokenGuard
 from dms.viewer.guard import WILDCARDS, HostGuard, allowed_hosts
 from dms.viewer.model import LiveModel
+from dms.viewer.stream import event_stream
 
 STATIC = Path(str(resources.files("dms.viewer") / "static"))
-KEEPALIVE_S = 15.0
-"""A comment line this often keeps proxies and the browser from closing a quiet stream."""
 QUEUE_LIMIT = 5000
 """Events a page may lag behind before it is cut off (it reconnects to a fresh snapshot)."""
-
-_Event = tuple[str, dict[str, Any]] | None
-
-
-def sse(name: str, data: Any) -> str:
-    """One server-sent event (JSON data on one line: JSON escapes line breaks)."""
-    return f"event: {name}\ndata: {json.dumps(data, separators=(',', ':'), allow_nan=False)}\n\n"
 
 
 def create_app(
@@ -67,47 +54,7 @@ def create_app(
         return JSONResponse(model.snapshot())
 
     async def events(_request: Request) -> Response:
-        loop = asyncio.get_running_loop()
-        pending: asyncio.Queue[_Event] = asyncio.Queue()
-        cut = False
-
-        def put(event: _Event) -> None:
-            nonlocal cut
-            if cut:
-                return
-            if pending.qsize() >= QUEUE_LIMIT:
-                cut = True
-                event = None
-            pending.put_nowait(event)
-
-        def listener(name: str, data: dict[str, Any]) -> None:
-            with suppress(RuntimeError):  # the server is stopping: its loop is closed
-                loop.call_soon_threadsafe(put, (name, data) if name else None)
-
-        async def stream() -> AsyncIterator[str]:
-            first = model.attach(listener)
-            try:
-                yield "retry: 1000\n" + sse("snapshot", first)
-                while True:
-                    try:
-                        event = await asyncio.wait_for(pending.get(), KEEPALIVE_S)
-                    except TimeoutError:
-                        yield ": keepalive\n\n"
-                        continue
-                    if event is None:
-                        return
-                    try:
-                        yield sse(*event)
-                    except ValueError:  # not plain JSON (the source drops such payloads)
-                        continue
-            finally:
-                model.detach(listener)
-
-        return StreamingResponse(
-            stream(),
-            media_type="text/event-stream",
-            headers={"Cache-Control": "no-store", "X-Accel-Buffering": "no"},
-        )
+        return event_stream(model.attach, model.detach, QUEUE_LIMIT)
 
     return Starlette(
         routes=[
