@@ -7,14 +7,13 @@ the tablet the person uses (with ``--host`` and TLS, from another machine).
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from dms.kernel.cli_options import ConnectOption, RobotOption, ZenohConfigOption
 from dms.kernel.errors import ConfigError
-from dms.viewer.cli import TLS_CERT_HELP, TLS_KEY_HELP
+from dms.viewer.cli import AllowHostOption, PortOption, TlsCertOption, TlsKeyOption
 
 DEFAULT_PORT = 8070
 LANGUAGE_RE = r"[A-Za-z]{2,3}(-[A-Za-z0-9]{2,8})*"
@@ -24,9 +23,7 @@ def face_command(
     connect: ConnectOption = None,
     zenoh_config: ZenohConfigOption = None,
     robot: RobotOption = "mini",
-    port: Annotated[
-        int, typer.Option(min=0, max=65535, help="HTTP port (0: any free port).")
-    ] = DEFAULT_PORT,
+    port: PortOption = DEFAULT_PORT,
     host: Annotated[
         str,
         typer.Option(
@@ -34,16 +31,9 @@ def face_command(
             "needs --tls-cert and --tls-key."
         ),
     ] = "127.0.0.1",
-    tls_cert: Annotated[Path | None, typer.Option("--tls-cert", help=TLS_CERT_HELP)] = None,
-    tls_key: Annotated[Path | None, typer.Option("--tls-key", help=TLS_KEY_HELP)] = None,
-    allow_host: Annotated[
-        list[str] | None,
-        typer.Option(
-            "--allow-host",
-            help="Another name the page is opened by (with --host 0.0.0.0: the machine's name).",
-            show_default="loopback names, the --host address",
-        ),
-    ] = None,
+    tls_cert: TlsCertOption = None,
+    tls_key: TlsKeyOption = None,
+    allow_host: AllowHostOption = None,
     language: Annotated[
         str,
         typer.Option(

@@ -17,7 +17,7 @@ import typer
 
 from dms.kernel.cli_options import RobotOption
 from dms.kernel.errors import ConfigError
-from dms.viewer.cli import TLS_CERT_HELP, TLS_KEY_HELP
+from dms.viewer.cli import AllowHostOption, PortOption, TlsCertOption, TlsKeyOption
 
 if TYPE_CHECKING:
     from dms.studio.link import DaemonLink
@@ -42,9 +42,7 @@ def studio_command(
             show_default="the shipped behaviors",
         ),
     ] = None,
-    port: Annotated[
-        int, typer.Option(min=0, max=65535, help="HTTP port (0: any free port).")
-    ] = DEFAULT_PORT,
+    port: PortOption = DEFAULT_PORT,
     host: Annotated[
         str,
         typer.Option(
@@ -52,16 +50,9 @@ def studio_command(
             "--tls-cert and --tls-key."
         ),
     ] = "127.0.0.1",
-    tls_cert: Annotated[Path | None, typer.Option("--tls-cert", help=TLS_CERT_HELP)] = None,
-    tls_key: Annotated[Path | None, typer.Option("--tls-key", help=TLS_KEY_HELP)] = None,
-    allow_host: Annotated[
-        list[str] | None,
-        typer.Option(
-            "--allow-host",
-            help="Another name the page is opened by (with --host 0.0.0.0: the machine's name).",
-            show_default="loopback names, the --host address",
-        ),
-    ] = None,
+    tls_cert: TlsCertOption = None,
+    tls_key: TlsKeyOption = None,
+    allow_host: AllowHostOption = None,
     rules: Annotated[
         list[Path] | None,
         typer.Option(

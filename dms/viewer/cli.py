@@ -22,6 +22,20 @@ DEFAULT_PORT = 8080
 TLS_CERT_HELP = "A PEM certificate: serve HTTPS (needed for a --host other than loopback)."
 TLS_KEY_HELP = "The PEM private key of --tls-cert, without a passphrase."
 
+# The options every page (the viewer, the studio, the face) spells alike; each page
+# says in its own --host's help why another address than loopback needs TLS.
+PortOption = Annotated[int, typer.Option(min=0, max=65535, help="HTTP port (0: any free port).")]
+TlsCertOption = Annotated[Path | None, typer.Option("--tls-cert", help=TLS_CERT_HELP)]
+TlsKeyOption = Annotated[Path | None, typer.Option("--tls-key", help=TLS_KEY_HELP)]
+AllowHostOption = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--allow-host",
+        help="Another name the page is opened by (with --host 0.0.0.0: the machine's name).",
+        show_default="loopback names, the --host address",
+    ),
+]
+
 
 def check_robot_ids(robots: list[str]) -> list[str]:
     for robot in robots:
@@ -57,9 +71,7 @@ def bind(host: str, port: int, page: str, tls: bool) -> socket.socket:
 def view_command(
     connect: ConnectOption = None,
     zenoh_config: ZenohConfigOption = None,
-    port: Annotated[
-        int, typer.Option(min=0, max=65535, help="HTTP port (0: any free port).")
-    ] = DEFAULT_PORT,
+    port: PortOption = DEFAULT_PORT,
     host: Annotated[
         str,
         typer.Option(
@@ -67,16 +79,9 @@ def view_command(
             "--tls-key (the token would cross the network in the clear)."
         ),
     ] = "127.0.0.1",
-    tls_cert: Annotated[Path | None, typer.Option("--tls-cert", help=TLS_CERT_HELP)] = None,
-    tls_key: Annotated[Path | None, typer.Option("--tls-key", help=TLS_KEY_HELP)] = None,
-    allow_host: Annotated[
-        list[str] | None,
-        typer.Option(
-            "--allow-host",
-            help="Another name the page is opened by (with --host 0.0.0.0: the machine's name).",
-            show_default="loopback names, the --host address",
-        ),
-    ] = None,
+    tls_cert: TlsCertOption = None,
+    tls_key: TlsKeyOption = None,
+    allow_host: AllowHostOption = None,
     robot: Annotated[
         list[str] | None,
         typer.Option(
