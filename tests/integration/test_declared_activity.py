@@ -9,6 +9,7 @@ the rows that still name it.
 
 from __future__ import annotations
 
+import csv
 import json
 import os
 import shutil
@@ -185,32 +186,37 @@ arrive_after_s: [0.5, 1.5]
 """
 
 
-def test_a_visitor_who_likes_it_gets_it_proposed_by_the_preference_chooser(
-    tmp_path: Path,
-) -> None:
-    folder = behaviors_folder(tmp_path)
-    (tmp_path / "fan.yaml").write_text(FAN, encoding="utf-8")
-    scenario = tmp_path / "declared.yaml"
+def proposed_by_preference(tmp: Path, folder: Path, activity: str) -> list[str]:
+    """Run a 30-minute scenario on ``folder`` with a visitor who likes ``activity`` (0.95)
+    and little else, rating every activity; the activities the robot chose for her."""
+    (tmp / "fan.yaml").write_text(FAN.replace("greet_and_ask", activity), encoding="utf-8")
+    scenario = tmp / "declared.yaml"
     scenario.write_text(
         "name: declared_preference\nseed: 5\nduration_s: 1800\n"
         f"settings: {{behaviors: {{folder: {folder}}}, controller: {{session_questions: 0, "
         "feedback_probability: 1.0, user_initiative: {low: 0.0}}}\n"
-        f"timeline:\n  - {{at: 0, visitor: {{persona: {tmp_path / 'fan.yaml'}}}}}\n"
-        "expect:\n  - {decision: {action: start, activity: greet_and_ask, reason: preference,"
+        f"timeline:\n  - {{at: 0, visitor: {{persona: {tmp / 'fan.yaml'}}}}}\n"
+        f"expect:\n  - {{decision: {{action: start, activity: {activity}, reason: preference,"
         " chosen_by: robot}}\n",
         encoding="utf-8",
     )
     ran = dms("sim", "run", str(scenario), "--json")
     assert ran.returncode == 0, ran.stdout[-2000:] + ran.stderr
     decisions = json.loads(ran.stdout)["decisions"]
-    chosen = [d["activity"] for d in decisions if d["action"] == "start"]
-    by_preference = [
+    return [
         d["activity"] for d in decisions if d["action"] == "start" and d["reason"] == "preference"
     ]
+
+
+def test_a_visitor_who_likes_it_gets_it_proposed_by_the_preference_chooser(
+    tmp_path: Path,
+) -> None:
+    folder = behaviors_folder(tmp_path)
+    by_preference = proposed_by_preference(tmp_path, folder, "greet_and_ask")
+    assert "greet_and_ask" in by_preference
     late = by_preference[len(by_preference) // 2 :]
     # learnt from her stops and ratings: the robot's favourite pick for her, once it knows
     assert max(set(late), key=late.count) == "greet_and_ask", late
-    assert "greet_and_ask" in chosen
 
 
 def test_an_activity_declared_while_the_daemon_runs_is_in_force_after_a_reload(
@@ -235,3 +241,22 @@ def test_an_activity_declared_while_the_daemon_runs_is_in_force_after_a_reload(
     finally:
         daemon.kill()
         session.close()
+
+
+def test_a_study_on_a_folder_that_declares_it_counts_it_like_any_other(tmp_path: Path) -> None:
+    folder = behaviors_folder(tmp_path)
+    config = tmp_path / "dms.toml"
+    config.write_text(f'[behaviors]\nfolder = "{folder}"\n', encoding="utf-8")
+    out = tmp_path / "study"
+    ran = dms("sim", "study", "--sessions", "6", "--config", str(config), "--out", str(out))
+    assert ran.returncode == 0, ran.stdout[-2000:] + ran.stderr
+    with (out / "decisions.csv").open(encoding="utf-8") as handle:
+        rows = list(csv.DictReader(handle))
+    chosen = [r for r in rows if r["reason"] == "preference"]
+    ranked = [json.loads(r["why"])["choice"]["ranking"] for r in chosen]
+    assert any("greet_and_ask" in ranking for ranking in ranked)  # ranked among the others
+    started = [r for r in rows if r["action"] == "start" and r["activity"] == "greet_and_ask"]
+    assert started and all(r["manager"] == "entertainment" for r in started)
+    with (out / "events.csv").open(encoding="utf-8") as handle:
+        events = [e for e in csv.DictReader(handle) if e["activity"] == "greet_and_ask"]
+    assert {e["event"] for e in events} >= {"started"}, events
