@@ -400,6 +400,15 @@ def sensitivity_command(
     out: Annotated[
         Path, typer.Option("--out", help="Folder for sensitivity.csv and sensitivity.png.")
     ] = Path("sensitivity"),
+    population: Annotated[
+        PopulationOption, typer.Option(help="The participants (as dms sim study's).")
+    ] = "paper",
+    chooser: Annotated[
+        ChooserOption, typer.Option(help="What picks the robot's own choices (as dms sim study's).")
+    ] = "dms",
+    jobs: Annotated[
+        int, typer.Option(min=1, max=64, help="Studies run at once (worker processes).")
+    ] = 1,
     as_json: JsonOption = False,
 ) -> None:
     """Move each input of the study (the participants', the robot's, the protocol's, the
@@ -416,7 +425,17 @@ def sensitivity_command(
             param_hint="--only",
         )
     with _progress(len(chosen) * (1 + 2 * len(names)), "studies") as told:
-        result = sweep(names, chosen, sessions, minutes, change, progress=told)
+        result = sweep(
+            names,
+            chosen,
+            sessions,
+            minutes,
+            change,
+            progress=told,
+            chooser=chooser,
+            population=population,
+            jobs=jobs,
+        )
     out.mkdir(parents=True, exist_ok=True)
     paths = [
         write_csv(out / "sensitivity.csv", result),

@@ -24,7 +24,9 @@ from pathlib import Path
 from typing import Any
 
 from dms.config import Settings
+from sim.baselines import ChooserName
 from sim.calibration import DEFAULT, INPUTS, PARTICIPANT_INPUTS, SETTING_INPUTS
+from sim.population import Population
 from sim.prediction import per_study, run_seeds
 from sim.study import study_settings
 from sim.table4 import LABELS, METRICS, OUTCOMES
@@ -153,9 +155,14 @@ def sweep(
     minutes: float = 30.0,
     change: float = 0.5,
     progress: Callable[[int], None] | None = None,
+    *,
+    chooser: ChooserName = "dms",
+    population: Population = "paper",
+    jobs: int = 1,
 ) -> Sensitivity:
     """The baseline and each input in ``names`` (of :data:`SWEEPABLE`) moved down and up
-    by ``change``."""
+    by ``change``, with ``chooser`` making the robot's choices for ``population``; ``jobs``
+    studies run at once."""
     done = 0
 
     def step() -> None:
@@ -164,7 +171,8 @@ def sweep(
         if progress is not None:
             progress(done)
 
-    baseline, noise = _means(seeds, sessions, minutes, settings=study_settings())
+    common: dict[str, Any] = {"chooser": chooser, "population": population, "jobs": jobs}
+    baseline, noise = _means(seeds, sessions, minutes, settings=study_settings(), **common)
     result = Sensitivity(list(seeds), change, baseline, noise)
     step()
     for name in names:
@@ -176,9 +184,12 @@ def sweep(
                     minutes,
                     settings=study_settings(),
                     calibration=DEFAULT.scaled(name, factor),
+                    **common,
                 )
             else:
-                moved, _ = _means(seeds, sessions, minutes, settings=moved_settings(name, factor))
+                moved, _ = _means(
+                    seeds, sessions, minutes, settings=moved_settings(name, factor), **common
+                )
             result.moved[(name, direction)] = moved
             step()
     return result

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
+
+import pytest
 
 from dms.cli import main
 from sim.sensitivity import sweep
@@ -46,3 +49,17 @@ def test_the_robots_and_the_controllers_inputs_move_their_rows_above_the_noise()
 def test_an_unknown_input_is_refused_naming_the_known_ones(tmp_path: Path) -> None:
     args = ["sim", "sensitivity", "--only", "menu_delay", "--out", str(tmp_path)]
     assert main(args) == 2
+
+
+def test_the_sweep_runs_with_a_baseline_chooser_on_either_population(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    liking = {}
+    for chooser in ("oracle", "least_liked"):
+        args = ["sim", "sensitivity", "--sessions", "3", "--minutes", "8", "--seeds", "0,1"]
+        args += ["--only", "screen_rate", "--out", str(tmp_path / chooser), "--json"]
+        args += ["--chooser", chooser, "--population", "heldout", "--jobs", "2"]
+        assert main(args) == 0
+        liking[chooser] = json.loads(capsys.readouterr().out)["baseline"]["robot_choice_liking"]
+    # the participants' best and worst picks: the sweep ran each chooser, not the default's
+    assert liking["oracle"] > liking["least_liked"] + 0.3, liking
