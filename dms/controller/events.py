@@ -141,7 +141,8 @@ class Events:
 
     def on_touch(self, touch: Touch, now: datetime) -> None:
         """The right shoulder during an activity the user has: pause it and ask
-        "continue or stop?". Any other touch goes to the activity."""
+        "continue or stop?" (one that cannot be paused is stopped: nothing is left to
+        ask about). Any other touch goes to the activity."""
         running = self.runner.current
         if (
             touch.part == "right_shoulder"
@@ -151,7 +152,8 @@ class Events:
             and not running.paused
             and running.name != "notification"
         ):
-            self.runner.pause(running, "confirm_cancel", now, "right shoulder touched")
+            if not self.runner.pause(running, "confirm_cancel", now, "right shoulder touched"):
+                return
             steady = self.sessions.steady(now)
             self.dialogs.open(
                 confirm_dialog(running.name, steady, self.settings.confirm_timeout_s), now

@@ -284,3 +284,30 @@ def test_a_request_to_pause_one_that_may_not_be_paused_is_logged_as_its_stop(
         ("cancel", "user_request", "requested by ann; it cannot be paused: stopped")
     ], decisions
     assert not [d for d in decisions if d["action"] in ("pause", "resume")], decisions
+
+
+def test_a_shoulder_touch_on_one_that_may_not_be_paused_stops_it_without_asking(
+    tmp_path: Path,
+) -> None:
+    stiff = GREET_AND_ASK.replace("expected_s: 60", "expected_s: 60\n  pausable: false")
+    folder = behaviors_folder(tmp_path, declared=stiff)
+    body = REMINDED.replace(
+        '  - {at: 3, agenda: {kind: reminder, user: ann, in_s: 5, text: "Time for your pills."}}',
+        "  - {at: 4, touch: right_shoulder}",
+    )
+    decisions = _run(_scenario(tmp_path, folder, body))
+    after = [
+        d
+        for d in decisions
+        if d["time"]
+        >= next(
+            d["time"]
+            for d in decisions
+            if d["activity"] == "greet_and_ask" and d["action"] == "cancel"
+        )
+    ]
+    stop = after[0]
+    assert (stop["action"], stop["reason"]) == ("cancel", "confirm_cancel"), decisions
+    assert stop["detail"] == "right shoulder touched; it cannot be paused: stopped", stop
+    # nothing is left to continue: "continue or stop?" is not asked
+    assert not [d for d in after if d["action"] == "ask"], after
