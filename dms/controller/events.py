@@ -17,7 +17,7 @@ from dms.config import ControllerSettings
 from dms.controller.deps import ControllerDeps, Counters
 from dms.controller.dialogs import Dialogs
 from dms.controller.requests import Asked, Requests
-from dms.controller.running import Runner
+from dms.controller.running import Runner, Running
 from dms.controller.sessions import Sessions
 from dms.dialog import Dialog, DialogKind, confirm_dialog
 from dms.faults import FaultBarrier
@@ -97,7 +97,7 @@ class Events:
                 self.sessions.note_initiative(True, now)
         elif request.action == "start":
             self._refuse(request, "start needs an activity")
-        elif request.action == "cancel" and self.requests.withdraw(request.activity):
+        elif request.action == "cancel" and self._withdraws(request, running):
             pass  # asked for earlier in this tick and not started yet: it never starts
         elif request.action == "cancel" and running is not None:
             if request.activity in (None, running.name):
@@ -119,6 +119,13 @@ class Events:
         else:
             state = "paused" if running.paused else "running"
             self._refuse(request, f"nothing to {request.action}: {running.name} is {state}")
+
+    def _withdraws(self, request: Request, running: Running | None) -> bool:
+        """Drop a start of the cancelled activity asked for earlier in this tick; True if
+        that was all the cancel had to do (False when the activity also runs: it is
+        cancelled too)."""
+        withdrawn = self.requests.withdraw(request.activity)
+        return withdrawn and (running is None or running.name != request.activity)
 
     def _continues(self, activity: str, now: datetime) -> bool:
         """A start of the activity that "continue or stop?" is about answers "continue";

@@ -186,3 +186,21 @@ def test_a_cancel_in_the_same_tick_as_its_start_withdraws_the_start() -> None:
         decided = [d.decision for d in sim.decisions[mark:]]
         assert not [d for d in decided if d.activity == "bingo"], decided
         assert not [e for e in sim.errors if e[1] == keys.REQUEST], sim.errors
+
+
+def test_a_start_of_what_runs_then_its_cancel_in_one_tick_cancels_it() -> None:
+    with _sim(user_initiative={"unknown": 0.0}) as sim:
+        sim.run_for(3)
+        sim.feed(keys.REQUEST, Request(action="start", activity="bingo", by="app"))
+        sim.tick(urgent=True)
+        assert (sim.decisions[-1].decision.action, sim.decisions[-1].decision.activity) == (
+            "start",
+            "bingo",
+        )
+        mark = len(sim.decisions)
+        sim.feed(keys.REQUEST, Request(action="start", activity="bingo", by="app"))
+        sim.feed(keys.REQUEST, Request(action="cancel", activity="bingo", by="app"))
+        sim.tick(urgent=True)
+        decided = [(d.decision.action, d.decision.activity) for d in sim.decisions[mark:]]
+        assert decided[:1] == [("cancel", "bingo")], decided
+        assert ("start", "bingo") not in decided, decided
