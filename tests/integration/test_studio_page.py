@@ -226,6 +226,46 @@ def test_a_pose_set_by_the_sliders_is_recorded_timed_and_played_back(
     assert "seconds: [1.5]" in saved.read_text(), saved.read_text()
 
 
+def drag_by(page: Any, selector: str, dx: float, dy: float) -> None:
+    """Press on ``selector``'s centre and move the mouse by (dx, dy) pixels, then let go."""
+    box = page.locator(selector).bounding_box()
+    x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+    page.mouse.move(x, y)
+    page.mouse.down()
+    page.mouse.move(x + dx, y + dy, steps=10)
+    page.mouse.up()
+
+
+def test_the_mini_is_posed_by_dragging_its_figure_and_the_pose_recorded(
+    studio: Studio, page: Any
+) -> None:
+    ready(page, studio.url)
+    page.fill("#param-name", "look_and_raise")
+    page.click('#palette button[data-block="pose"]')
+    page.wait_for_selector("#figure")
+    page.click("#posing button:has-text('Neutral')")  # the module's robot, as others left it
+    posed(page, "neck", "=== 0")
+    # The head dragged to the drawing's right: the robot looks to its left, and down.
+    drag_by(page, "#figure .skull", 40, 15)
+    head = posed(page, "neck", "> 0.4")
+    assert 0.1 < head["head"] <= 0.45, head
+    # Its left hand (on the drawing's right) dragged out and up: the arm raised.
+    drag_by(page, '#figure [data-part="left_arm"] .hand', 40, -60)
+    raised = posed(page, "left_arm", "> 1.5")
+    # The body dragged to the left, past its limit: the hip stops at -1.2.
+    drag_by(page, "#figure .torso", -150, 0)
+    turned = posed(page, "hip", "< -1.1")
+    assert turned["hip"] == -1.2 and turned["neck"] == raised["neck"], turned
+    assert float(page.input_value("#joint-hip")) == -1.2
+    page.click("#record-button")
+    row = page.locator('tr[data-keyframe="0"]')
+    row.wait_for()
+    kept = {
+        joint: float(row.locator(f'input[data-joint="{joint}"]').input_value()) for joint in turned
+    }
+    assert kept == pytest.approx(turned, abs=1e-9), (kept, turned)
+
+
 def test_a_task_frame_is_declared_in_a_form_and_aimed_at_by_name(studio: Studio, page: Any) -> None:
     ready(page, studio.url)
     page.fill("#param-name", "fetch_cup")

@@ -1,9 +1,10 @@
 // Posing the simulated Mini by hand, as ROS Commander's users pose their robot before
-// they record: a slider per joint, within the joint's limits (from the server). Each
-// move sets the simulated Mini's joints; Record then takes them as a keyframe. During
-// a trial the sliders follow the robot.
+// they record: a figure to drag (figure.js) and a slider per joint, within the joint's
+// limits (from the server). Each move sets the simulated Mini's joints; Record then
+// takes them as a keyframe. During a trial the figure and the sliders follow the robot.
 
 import { get, post } from "./api.js";
+import { Figure } from "./figure.js";
 
 const SEND_MS = 80; // a slider dragged sends at most this often
 const JOINT_ORDER = ["hip", "neck", "head", "left_arm", "right_arm"];
@@ -23,6 +24,9 @@ export class Posing {
     this.limits = reply.data.joints;
     const box = document.getElementById("posing");
     box.replaceChildren();
+    this.figure = new Figure(box, this.limits, (joints) => {
+      for (const [name, angle] of Object.entries(joints)) this.set(name, angle);
+    });
     for (const name of JOINT_ORDER.filter((joint) => joint in this.limits)) {
       const { low, high, neutral } = this.limits[name];
       const row = document.createElement("label");
@@ -35,9 +39,8 @@ export class Posing {
       const value = document.createElement("output");
       value.textContent = neutral.toFixed(2);
       slider.addEventListener("input", () => {
-        value.textContent = Number(slider.value).toFixed(2);
-        this.wanted[name] = Number(slider.value);
-        if (!this.timer) this.timer = setTimeout(() => this.send(), SEND_MS);
+        this.set(name, Number(slider.value));
+        this.figure.show({ [name]: Number(slider.value) });
       });
       row.append(title, slider, value);
       box.appendChild(row);
@@ -53,6 +56,17 @@ export class Posing {
     if (now.ok) this.show(now.data.joints);
   }
 
+  // One joint moved by hand: shown, and sent with the others moved meanwhile.
+  set(name, angle) {
+    const made = this.sliders[name];
+    if (made) {
+      made.slider.value = angle;
+      made.value.textContent = Number(angle).toFixed(2);
+    }
+    this.wanted[name] = angle;
+    if (!this.timer) this.timer = setTimeout(() => this.send(), SEND_MS);
+  }
+
   async send() {
     this.timer = null;
     const joints = this.wanted;
@@ -61,7 +75,14 @@ export class Posing {
   }
 
   // Pose the simulated Mini: joints is name -> radians (clamped to the limits there).
-  async pose(joints) {
+  // One at a time, in order: an earlier reply never lands after a later one.
+  pose(joints) {
+    const sent = (this.sending || Promise.resolve()).then(() => this.post(joints));
+    this.sending = sent.catch(() => null); // one lost on the way does not stop the next
+    return sent;
+  }
+
+  async post(joints) {
     const reply = await post("/api/robot/pose", { joints });
     if (!reply.ok) {
       this.handlers.status(reply.data.error, "bad");
@@ -73,6 +94,7 @@ export class Posing {
 
   // The joints as the robot has them now (a slider being dragged keeps its place).
   show(joints) {
+    if (this.figure) this.figure.show(joints);
     for (const [name, angle] of Object.entries(joints || {})) {
       const made = this.sliders[name];
       if (!made || document.activeElement === made.slider) continue;
