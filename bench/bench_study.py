@@ -20,7 +20,7 @@ participants. Printed:
 - ``wall_s``.
 
 Run: ``.venv/bin/python bench/bench_study.py [--quick] [--seeds 0-99]
-[--choosers popular,greedy] [--population paper|heldout] [--repeat 5] [--jobs 2]``
+[--choosers popular,greedy|none] [--population paper|heldout] [--repeat 5] [--jobs 2]``
 (about 10 s a study of 30 participants on the dev machine; ``--jobs`` runs studies side
 by side, with the same results).
 """
@@ -85,7 +85,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="seeds 0-2, 6 participants")
     parser.add_argument("--seeds", help="FIRST-LAST (default: the pre-registered 0-99)")
-    parser.add_argument("--choosers", help="choosers beside dms, comma-separated (default: all)")
+    parser.add_argument(
+        "--choosers", help="choosers beside dms, comma-separated, or none (default: all)"
+    )
     parser.add_argument("--sessions", type=int, default=30)
     parser.add_argument("--repeat", type=int, default=1, help="visits of each participant")
     parser.add_argument("--population", default="paper", choices=("paper", "heldout"))
@@ -99,11 +101,12 @@ def main() -> None:
     else:
         seeds = list(PREREGISTERED_SEEDS[:3] if args.quick else PREREGISTERED_SEEDS)
     sessions = 6 if args.quick else args.sessions
-    others = (
-        [cast(ChooserName, c) for c in args.choosers.split(",")]
-        if args.choosers
-        else list(BASELINES)
-    )
+    if args.choosers == "none":
+        others: list[ChooserName] = []
+    elif args.choosers:
+        others = [cast(ChooserName, c) for c in args.choosers.split(",")]
+    else:
+        others = list(BASELINES)
     wall = time.perf_counter()
     settings = study_settings()
 
