@@ -82,15 +82,22 @@ def interrupt(proc: subprocess.Popen[str], lines: StderrLines) -> tuple[int, str
     return code, lines.text()
 
 
+def _before_the_project(frame: str) -> bool:
+    """A traceback line of Python's start: frozen, a .pth line, or an installed file."""
+    return any(mark in frame for mark in ('File "<frozen ', 'File "<string>"', "/site-packages/"))
+
+
 def test_ctrl_c_right_after_spawn_is_quiet(tmp_path: Path) -> None:
     proc = spawn(tmp_path)
     code, stderr = interrupt(proc, StderrLines(proc))
     if code == PYTHON_START_INTERRUPTED:
         # Python's own start (its site module) took the signal: none of the project's
-        # code had run, every frame Python prints is one of its own frozen modules.
+        # code had run, every frame Python prints is one of its own frozen modules or
+        # the installed packages' start-up lines (a .pth file, an editable install's
+        # finder) that the site module runs.
         assert "Fatal Python error: init_import_site" in stderr, stderr
         frames = [line for line in stderr.splitlines() if line.strip().startswith("File ")]
-        assert frames and all('File "<frozen ' in frame for frame in frames), stderr
+        assert frames and all(_before_the_project(frame) for frame in frames), stderr
         return
     # Before Python has put in its handler the signal's default action ends the process,
     # which a shell reports as 130 too.
