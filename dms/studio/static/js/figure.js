@@ -23,6 +23,7 @@ export class Figure {
   constructor(parent, limits, moved) {
     this.limits = limits;
     this.moved = moved;
+    this.dragging = null; // {part, from, start} while a part is dragged
     this.joints = Object.fromEntries(Object.entries(limits).map(([name, j]) => [name, j.neutral]));
     this.svg = el("svg", { id: "figure", viewBox: "0 0 160 150", width: 160, height: 150,
       role: "img", "aria-label": "The simulated Mini: drag its head, body or hands" }, parent);
