@@ -8,17 +8,10 @@
 
 import { blockOf, join, MACHINES, nameOf, parentOf } from "./doc.js";
 import { layout } from "./layout.js";
+import { el } from "./svg.js";
 
-const SVG = "http://www.w3.org/2000/svg";
 const PORT_HIT = 11; // the radius a press on a port counts within
 const MOVE_PX = 4; // a press that moves less than this is a click
-
-function el(name, attrs, parent) {
-  const node = document.createElementNS(SVG, name);
-  for (const [key, value] of Object.entries(attrs || {})) node.setAttribute(key, value);
-  if (parent) parent.appendChild(node);
-  return node;
-}
 
 export class Canvas {
   constructor(svg, doc, handlers) {

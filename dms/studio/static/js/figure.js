@@ -4,19 +4,13 @@
 // The robot faces the designer, so its left arm is on the right of the drawing. Every
 // angle stays within the joint's limits; the figure follows the robot in a trial too.
 
-const SVG = "http://www.w3.org/2000/svg";
+import { el } from "./svg.js";
+
 const PIXELS_PER_RADIAN = 60; // a drag of 60 px turns the head or the body 1 rad
 const SHOULDER_Y = 78;
 const ARM_LENGTH = 44;
 const SHOULDERS = { right_arm: 52, left_arm: 108 }; // x: the robot's right is on our left
 const HEAD = { x: 80, y: 38, r: 22 };
-
-function el(tag, attrs, parent) {
-  const node = document.createElementNS(SVG, tag);
-  for (const [key, value] of Object.entries(attrs)) node.setAttribute(key, value);
-  if (parent) parent.appendChild(node);
-  return node;
-}
 
 export class Figure {
   // limits: name -> {low, high, neutral}; moved(joints): called with the joints a drag set.
