@@ -9,12 +9,16 @@ the environment's stamp; the bridge then reaches the daemon over Zenoh only.
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
+from collections.abc import Mapping
 from pathlib import Path
+from typing import NoReturn
 
 import typer
 
+from dms.kernel import keys
 from dms.kernel.errors import ConfigError
 
 STAMP_NAME = ".installed-stamp"
@@ -55,3 +59,31 @@ def prepare_environment(command: str, venv: Path, source: Path, echo: bool, hint
             raise ConfigError(f"cannot prepare {venv}: {' '.join(step[:4])}: {tail}{more}")
     stamp.touch()
     return python
+
+
+def check_robot(robot: str) -> None:
+    """Refuse a robot id the daemon could not have, before the environment is made."""
+    if not keys.ROBOT_ID_RE.fullmatch(robot):
+        raise ConfigError(f"--robot {robot!r}: lower-case letters, digits, _ and - only")
+
+
+def become_bridge(
+    python: Path,
+    module: str,
+    robot: str,
+    connect: list[str] | None,
+    zenoh_config: Path | None,
+    extra: list[str],
+    env: Mapping[str, str] | None = None,
+) -> NoReturn:
+    """Replace this process with the bridge ``module`` in its environment's ``python``, for
+    ``robot``, with the daemon's Zenoh options and the bridge's own ``extra`` arguments;
+    ``env``: the bridge's environment variables (this process's when None)."""
+    argv = [str(python), "-m", module, "--robot", robot, *extra]
+    for endpoint in connect or []:
+        argv += ["--connect", endpoint]
+    if zenoh_config is not None:
+        argv += ["--zenoh-config", str(zenoh_config)]
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os.execve(argv[0], argv, dict(os.environ if env is None else env))

@@ -11,17 +11,19 @@ bridge (``exec``). It reaches the daemon over Zenoh only (docs/reachy.md).
 
 from __future__ import annotations
 
-import os
-import sys
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
+from dms.bridge_env import become_bridge, check_robot, prepare_environment
 from dms.bridge_env import bridge_python as environment_python
-from dms.bridge_env import prepare_environment
-from dms.kernel import keys
-from dms.kernel.cli_options import ConnectOption, RobotOption, ZenohConfigOption
+from dms.kernel.cli_options import (
+    ConnectOption,
+    PrepareOption,
+    RobotOption,
+    ZenohConfigOption,
+)
 from dms.kernel.errors import ConfigError
 
 CHECKOUT = Path(__file__).resolve().parents[1]
@@ -65,31 +67,19 @@ def reachy(
             "(off: a perception module publishes it; docs/reachy.md)."
         ),
     ] = False,
-    only_prepare: Annotated[
-        bool,
-        typer.Option("--prepare", help="Only make or update the bridge's environment, then exit."),
-    ] = False,
+    only_prepare: PrepareOption = False,
 ) -> None:
     """Drive a Reachy Mini (real or simulated) as the robot of a daemon run with
     ``--robot zenoh``, until SIGINT or SIGTERM; the bridge runs in its own environment,
     .venv-reachy beside the checkout, made on first use (docs/reachy.md)."""
-    if not keys.ROBOT_ID_RE.fullmatch(robot):
-        raise ConfigError(f"--robot {robot!r}: lower-case letters, digits, _ and - only")
+    check_robot(robot)
     if not 0 < port < 65536:
         raise ConfigError(f"--port {port}: a TCP port, 1 to 65535")
     python = prepare()
     if only_prepare:
         typer.echo(str(python))
         return
-    argv = [str(python), "-m", "dms_reachy", "--robot", robot, "--host", host, "--port", str(port)]
-    for endpoint in connect or []:
-        argv += ["--connect", endpoint]
-    if zenoh_config is not None:
-        argv += ["--zenoh-config", str(zenoh_config)]
-    if media:
-        argv.append("--media")
-    if faces:
-        argv.append("--faces")
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os.execv(argv[0], argv)
+    extra = ["--host", host, "--port", str(port)]
+    extra += ["--media"] if media else []
+    extra += ["--faces"] if faces else []
+    become_bridge(python, "dms_reachy", robot, connect, zenoh_config, extra)

@@ -18,11 +18,14 @@ from typing import Annotated
 
 import typer
 
+from dms.bridge_env import become_bridge, check_robot, prepare_environment
 from dms.bridge_env import bridge_python as environment_python
-from dms.bridge_env import prepare_environment
-from dms.kernel import keys
-from dms.kernel.cli_options import ConnectOption, RobotOption, ZenohConfigOption
-from dms.kernel.errors import ConfigError
+from dms.kernel.cli_options import (
+    ConnectOption,
+    PrepareOption,
+    RobotOption,
+    ZenohConfigOption,
+)
 
 ROS_LIBRARIES = (
     "librcl*.so*",
@@ -136,27 +139,17 @@ def ros2(
         bool,
         typer.Option(help="Leave the node for a lifecycle manager to configure and activate."),
     ] = False,
-    only_prepare: Annotated[
-        bool,
-        typer.Option("--prepare", help="Only make or update the bridge's environment, then exit."),
-    ] = False,
+    only_prepare: PrepareOption = False,
 ) -> None:
     """Bridge a robot's keys to ROS 2 and back (node dms_bridge in /robots/<id>) until
     SIGINT or SIGTERM; the bridge runs in its own environment, .venv-ros2 beside the
     checkout, made on first use (docs/ros2.md)."""
-    if not keys.ROBOT_ID_RE.fullmatch(robot):
-        raise ConfigError(f"--robot {robot!r}: lower-case letters, digits, _ and - only")
+    check_robot(robot)
     python = prepare()
     if only_prepare:
         typer.echo(str(python))
         return
-    argv = [str(python), "-m", "dms_ros2", "--robot", robot]
-    for endpoint in connect or []:
-        argv += ["--connect", endpoint]
-    if zenoh_config is not None:
-        argv += ["--zenoh-config", str(zenoh_config)]
-    if unconfigured:
-        argv.append("--unconfigured")
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os.execve(argv[0], argv, bridge_environment(os.environ))
+    extra = ["--unconfigured"] if unconfigured else []
+    become_bridge(
+        python, "dms_ros2", robot, connect, zenoh_config, extra, bridge_environment(os.environ)
+    )

@@ -49,3 +49,9 @@ DbOption = Annotated[
 ]
 
 JsonOption = Annotated[bool, typer.Option("--json", help="Print JSON.")]
+
+PrepareOption = Annotated[
+    bool,
+    typer.Option("--prepare", help="Only make or update the bridge's environment, then exit."),
+]
+"""A bridge's ``--prepare`` (``dms ros2``, ``dms reachy``)."""
