@@ -47,6 +47,7 @@ from activities.known import known_media
 from activities.library import content_dirs
 from dms.kernel.body import JOINTS, NEUTRAL
 from dms.studio import placement
+from dms.studio.bodies import json_object
 from dms.studio.errors import StudioError
 from dms.studio.folder import Folder
 from dms.studio.handpose import HandPose
@@ -59,8 +60,6 @@ from dms.viewer.guard import WILDCARDS, HostGuard, allowed_hosts
 
 DEFAULT_FRAMES = ["user", "face:<id>", "object:<name>"]
 STATIC = Path(str(resources.files("dms.studio") / "static"))
-MAX_BODY = 2_000_000
-"""The largest request body taken: a behavior is a few kilobytes."""
 
 Handler = Callable[[Request], Awaitable[Any]]
 
@@ -86,19 +85,6 @@ def one_line(message: str) -> str:
     """A refusal on one line: YAML's and the loader's messages span several (a caret
     under the spot), and a page or a script shows the first line of what it gets."""
     return " | ".join(line.strip() for line in message.splitlines() if line.strip())
-
-
-async def body(request: Request) -> dict[str, Any]:
-    raw = await request.body()
-    if len(raw) > MAX_BODY:
-        raise StudioError("request too large", 413)
-    try:
-        data = json.loads(raw or b"{}")
-    except ValueError:
-        raise StudioError("the request is not JSON") from None
-    if not isinstance(data, dict):
-        raise StudioError("the request is a JSON object")
-    return data
 
 
 def document(data: dict[str, Any]) -> dict[str, Any]:
@@ -142,12 +128,12 @@ class Studio:
         return await run_in_threadpool(self.folder.open, request.path_params["name"])
 
     async def check(self, request: Request) -> Any:
-        doc = document(await body(request))
+        doc = document(await json_object(request))
         report = await run_in_threadpool(self.folder.check, doc)
         return report.to_json()
 
     async def save(self, request: Request) -> Any:
-        data = await body(request)
+        data = await json_object(request)
         opened = data.get("hash")
         if opened is not None and not isinstance(opened, str):
             raise StudioError("hash: the one the open gave, or null for a new behavior")
@@ -157,10 +143,10 @@ class Studio:
         return saved.to_json()
 
     async def compare(self, request: Request) -> Any:
-        return await run_in_threadpool(self.folder.compare, document(await body(request)))
+        return await run_in_threadpool(self.folder.compare, document(await json_object(request)))
 
     async def try_start(self, request: Request) -> Any:
-        data = await body(request)
+        data = await json_object(request)
         doc = document(data)
         state = data.get("state")
         if isinstance(state, str) and state:
@@ -183,13 +169,13 @@ class Studio:
         return await run_in_threadpool(self._trial().step)
 
     async def try_answer(self, request: Request) -> Any:
-        text = (await body(request)).get("text")
+        text = (await json_object(request)).get("text")
         if not isinstance(text, str):
             raise StudioError("text: what the user says, screen:CHOICE or touch:PART")
         return {"taken": await run_in_threadpool(self._trial().answer, text)}
 
     async def try_marker(self, request: Request) -> Any:
-        seen = (await body(request)).get("seen")
+        seen = (await json_object(request)).get("seen")
         if not isinstance(seen, bool):
             raise StudioError("seen: true to show the marker, false to hide it")
         return {"seen": await run_in_threadpool(self._trial().show_marker, seen)}
@@ -210,7 +196,7 @@ class Studio:
         return self.trial.joints() if self.trial is not None else dict(NEUTRAL)
 
     async def pose(self, request: Request) -> Any:
-        joints = (await body(request)).get("joints")
+        joints = (await json_object(request)).get("joints")
         if not isinstance(joints, dict) or not joints:
             raise StudioError(f"joints: {{name: radians}} of {', '.join(JOINTS)}")
         posed = self._sim_joints()
@@ -248,7 +234,7 @@ class Studio:
         return self.link
 
     async def daemon_try(self, request: Request) -> Any:
-        data = await body(request)
+        data = await json_object(request)
         doc = document(data)
         state = data.get("state")
         if state is not None and not isinstance(state, str):
@@ -267,7 +253,7 @@ class Studio:
         return {"states": self._link().states(max(since, 0))}
 
     async def daemon_answer(self, request: Request) -> Any:
-        text = (await body(request)).get("text")
+        text = (await json_object(request)).get("text")
         return await run_in_threadpool(self._link().ask, {"op": "answer", "text": text})
 
     async def daemon_stop(self, _request: Request) -> Any:
@@ -282,11 +268,11 @@ class Studio:
         return await run_in_threadpool(self.rules.open, request.path_params["name"])
 
     async def rules_check(self, request: Request) -> Any:
-        name, text = _rules_text(await body(request))
+        name, text = _rules_text(await json_object(request))
         return await run_in_threadpool(self.rules.check, name, text)
 
     async def rules_save(self, request: Request) -> Any:
-        data = await body(request)
+        data = await json_object(request)
         name, text = _rules_text(data)
         opened = data.get("hash")
         return await run_in_threadpool(

@@ -12,12 +12,12 @@ mode off and says why.
 
 from __future__ import annotations
 
-import json
 from typing import Any
 
 from starlette.concurrency import run_in_threadpool
 from starlette.requests import Request
 
+from dms.studio.bodies import json_object
 from dms.studio.errors import StudioError
 from dms.studio.link import DaemonLink
 
@@ -42,14 +42,8 @@ class HandPose:
 
     async def switch(self, request: Request) -> dict[str, Any]:
         """``{"on": true}`` (or a renewal) or ``{"on": false}``."""
-        raw = await request.body()
-        if len(raw) > MAX_BODY:
-            raise StudioError("request too large", 413)
-        try:
-            data = json.loads(raw or b"{}")
-        except ValueError:
-            raise StudioError('the request is not JSON: {"on": true} or {"on": false}') from None
-        on = data.get("on") if isinstance(data, dict) else None
+        data = await json_object(request, MAX_BODY, '{"on": true} or {"on": false}')
+        on = data.get("on")
         if not isinstance(on, bool):
             raise StudioError('on: true or false, as in {"on": true}')
         return await run_in_threadpool(self.ask, on)
