@@ -134,6 +134,20 @@ def _run(path: Path) -> list[dict[str, Any]]:
     return decisions
 
 
+REMINDER = '  - {at: 3, agenda: {kind: reminder, user: ann, in_s: 5, text: "Time for your pills."}}'
+
+
+def _unpausable(tmp: Path, instead_of_the_reminder: str | None = None) -> list[dict[str, Any]]:
+    """The decisions of REMINDED with greet_and_ask declared not pausable, and the
+    reminder replaced by ``instead_of_the_reminder`` when given."""
+    stiff = GREET_AND_ASK.replace("expected_s: 60", "expected_s: 60\n  pausable: false")
+    folder = behaviors_folder(tmp, declared=stiff)
+    body = REMINDED
+    if instead_of_the_reminder is not None:
+        body = REMINDED.replace(REMINDER, instead_of_the_reminder)
+    return _run(_scenario(tmp, folder, body))
+
+
 def _around_the_reminder(decisions: list[dict[str, Any]]) -> list[tuple[str, str, str]]:
     return [
         (d["action"], d["activity"], d["reason"])
@@ -145,9 +159,7 @@ def _around_the_reminder(decisions: list[dict[str, Any]]) -> list[tuple[str, str
 def test_a_reminder_stops_a_declared_activity_that_may_not_be_paused_and_says_so(
     tmp_path: Path,
 ) -> None:
-    stiff = GREET_AND_ASK.replace("expected_s: 60", "expected_s: 60\n  pausable: false")
-    folder = behaviors_folder(tmp_path, declared=stiff)
-    decisions = _run(_scenario(tmp_path, folder, REMINDED))
+    decisions = _unpausable(tmp_path)
     assert _around_the_reminder(decisions)[:3] == [
         ("start", "greet_and_ask", "user_request"),
         ("cancel", "greet_and_ask", "agenda"),
@@ -272,13 +284,7 @@ def test_behavior_check_refuses_an_unknown_robot_parameter_and_a_misspelt_medium
 def test_a_request_to_pause_one_that_may_not_be_paused_is_logged_as_its_stop(
     tmp_path: Path,
 ) -> None:
-    stiff = GREET_AND_ASK.replace("expected_s: 60", "expected_s: 60\n  pausable: false")
-    folder = behaviors_folder(tmp_path, declared=stiff)
-    body = REMINDED.replace(
-        '  - {at: 3, agenda: {kind: reminder, user: ann, in_s: 5, text: "Time for your pills."}}',
-        "  - {at: 4, request: {action: pause, by: ann}}",
-    )
-    decisions = _run(_scenario(tmp_path, folder, body))
+    decisions = _unpausable(tmp_path, "  - {at: 4, request: {action: pause, by: ann}}")
     stops = [d for d in decisions if d["activity"] == "greet_and_ask" and d["action"] != "start"]
     assert [(d["action"], d["reason"], d["detail"]) for d in stops][:1] == [
         ("cancel", "user_request", "requested by ann; it cannot be paused: stopped")
@@ -289,23 +295,11 @@ def test_a_request_to_pause_one_that_may_not_be_paused_is_logged_as_its_stop(
 def test_a_shoulder_touch_on_one_that_may_not_be_paused_stops_it_without_asking(
     tmp_path: Path,
 ) -> None:
-    stiff = GREET_AND_ASK.replace("expected_s: 60", "expected_s: 60\n  pausable: false")
-    folder = behaviors_folder(tmp_path, declared=stiff)
-    body = REMINDED.replace(
-        '  - {at: 3, agenda: {kind: reminder, user: ann, in_s: 5, text: "Time for your pills."}}',
-        "  - {at: 4, touch: right_shoulder}",
+    decisions = _unpausable(tmp_path, "  - {at: 4, touch: right_shoulder}")
+    cancel = next(
+        d for d in decisions if d["activity"] == "greet_and_ask" and d["action"] == "cancel"
     )
-    decisions = _run(_scenario(tmp_path, folder, body))
-    after = [
-        d
-        for d in decisions
-        if d["time"]
-        >= next(
-            d["time"]
-            for d in decisions
-            if d["activity"] == "greet_and_ask" and d["action"] == "cancel"
-        )
-    ]
+    after = [d for d in decisions if d["time"] >= cancel["time"]]
     stop = after[0]
     assert (stop["action"], stop["reason"]) == ("cancel", "confirm_cancel"), decisions
     assert stop["detail"] == "right shoulder touched; it cannot be paused: stopped", stop

@@ -23,6 +23,8 @@ import pytest
 from tests.integration.harness import Collector, DaemonProcess, client_session, put
 from tests.integration.test_declared_activity import proposed_by_preference
 from tests.integration.test_studio import running_studio, shipped_copy
+from tests.integration.test_studio_daemon import add
+from tests.integration.test_studio_page import drag as drag_over
 from tests.integration.viewer_harness import CHROMIUM, CHROMIUM_ARGS, browser_missing
 
 WAIT_MS = 20_000
@@ -41,18 +43,9 @@ def dms(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 def drag(page: Any, source: str, target: str) -> None:
-    """Press on ``source``, move over ``target`` with the mouse and let go there."""
-    page.click("#zoom-fit")  # every state in view
-    page.locator(source).hover()
-    page.mouse.down()
-    box = page.locator(target).bounding_box()
-    page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2, steps=8)
-    page.mouse.up()
-
-
-def add(page: Any, block: str, name: str) -> None:
-    page.click(f'#palette button[data-block="{block}"]')
-    page.wait_for_selector(f'.state[data-path="{name}"]')
+    """Drag from ``source`` to ``target`` with every state in view."""
+    page.click("#zoom-fit")
+    drag_over(page, source, target)
 
 
 def port(state: str, outcome: str) -> str:
