@@ -47,20 +47,25 @@ def _failure_tick() -> float:
     return at
 
 
+def _high_priority_event(sim: Simulation, due: float) -> None:
+    """Ann's high-priority cognitive stimulation, due at virtual second ``due``."""
+    agenda = sim.stack.agenda
+    assert agenda is not None
+    data = {
+        "user_id": "ann",
+        "kind": "event",
+        "activity": "cognitive_stimulation",
+        "priority": "high",
+        "at": sim.when(due),
+    }
+    agenda.add(ItemSpec.from_data(data), sim.now())
+
+
 def test_a_high_priority_event_due_on_the_tick_the_activity_fails_is_the_reason() -> None:
     failed_at = _failure_tick()
 
     def event(sim: Simulation) -> None:
-        agenda = sim.stack.agenda
-        assert agenda is not None
-        data = {
-            "user_id": "ann",
-            "kind": "event",
-            "activity": "cognitive_stimulation",
-            "priority": "high",
-            "at": sim.when(failed_at),
-        }
-        agenda.add(ItemSpec.from_data(data), sim.now())
+        _high_priority_event(sim, failed_at)
 
     at, decisions = _run(event)
     assert at == failed_at
@@ -91,16 +96,7 @@ def test_a_request_an_event_and_an_error_on_one_tick_the_request_first() -> None
     due = _failure_tick()  # three reasons on one tick: (b), (c) and (d)
 
     def both(sim: Simulation) -> None:
-        agenda = sim.stack.agenda
-        assert agenda is not None
-        data = {
-            "user_id": "ann",
-            "kind": "event",
-            "activity": "cognitive_stimulation",
-            "priority": "high",
-            "at": sim.when(due),
-        }
-        agenda.add(ItemSpec.from_data(data), sim.now())
+        _high_priority_event(sim, due)
         asked = Request(action="start", activity="bingo", by="ann")
         sim.at(due, lambda: sim.feed(keys.REQUEST, asked))
 
